@@ -1,0 +1,85 @@
+"""The ``geoshape`` command line.
+
+Each sub-command lives in its own module ``geoshape/cli/<name>.py`` exposing
+``register(subparsers)``; that module must import nothing heavy at top level, so
+``geoshape --help`` stays instant. Heavy imports happen inside the command's handler.
+
+Exit codes: 0 success, 1 the command ran but reported failures (e.g. some files of a
+batch were skipped), 2 bad usage or bad input (one line on stderr, no traceback),
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+# Sub-command modules, in the order --help lists them. A module that does not exist
+# yet is skipped, so each feature registers itself by adding its file.
+COMMAND_MODULES = [
+    "info",
+    "match2d",
+    "retrieval2d",
+    "embed",
+    "correspond",
+    "retrieval3d",
+    "index",
+    "gen",
+    "experiment",
+    "bench",
+    "filters",
+    "run",
+    "demo",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from geoshape import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="geoshape",
+        description="Correspondence and retrieval of articulated 2D contours and 3D meshes.",
+    )
+    parser.add_argument("--version", action="version", version=f"geoshape {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"geoshape.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"geoshape.cli.{name}":
+                continue
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return 2
+    from geoshape.errors import GeoshapeError
+
+    try:
+        status = args.handler(args)
+    except GeoshapeError as exc:
+        print(f"geoshape {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"geoshape {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+    return int(status or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Geometry of one shape: mesh graphs, structural graph, geodesics, sampling, areas, curvature."""

@@ -1,0 +1,1 @@
+"""Files in, arrays out: meshes, silhouettes, contours, datasets, atomic writers, validation."""

@@ -1,0 +1,1 @@
+"""Shape descriptors, pairwise distances, all-pairs matrices, the persistent index, metrics."""

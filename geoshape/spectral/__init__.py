@@ -1,0 +1,1 @@
+"""Affinities, spectral embeddings (dense, partial, Nyström), eigenvalue scaling, EVD."""

@@ -1,0 +1,1 @@
+"""MeshLab-style filters built on the geoshape library (see plugins/README)."""
