@@ -1,0 +1,135 @@
+"""Tests of the batch runner: same results on every backend, errors kept or raised."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoshape.errors import InvalidOptionError
+from geoshape.parallel import pairwise_matrix, run_map
+
+
+def square_or_fail(x):
+    """Top-level (picklable) task: x**2, but item 3 is a 'bad file'."""
+    if x == 3:
+        raise ValueError(f"bad item {x}")
+    return x * x
+
+
+def seeded_vector(seed):
+    """A result that depends only on the item, never on the worker."""
+    return np.random.default_rng(seed).normal(size=4)
+
+
+def l1(a, b):
+    return float(np.abs(np.asarray(a) - np.asarray(b)).sum())
+
+
+def l1_block(A, B):
+    A, B = np.asarray(A), np.asarray(B)
+    return np.abs(A[:, None, :] - B[None, :, :]).sum(axis=2)
+
+
+def ordered_diff(a, b):
+    return float(a[0] - 2.0 * b[0])
+
+
+ITEMS = [np.array([0.0, 1.0]), np.array([2.0, -1.0]), np.array([0.5, 0.5]),
+         np.array([3.0, 3.0]), np.array([-1.0, 4.0])]
+EXPECTED_L1 = np.array([[l1(a, b) for b in ITEMS] for a in ITEMS])
+
+
+@pytest.fixture(scope="module")
+def dask_client():
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(
+        n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None
+    )
+    client = distributed.Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def test_serial_order_and_values():
+    assert run_map(square_or_fail, [0, 1, 2, 4], backend="serial", chunksize=3) == [0, 1, 4, 16]
+
+
+def test_processes_match_serial():
+    items = list(range(10))
+    serial = run_map(seeded_vector, items, backend="serial")
+    procs = run_map(seeded_vector, items, backend="processes", n_jobs=2, chunksize=3)
+    assert len(procs) == 10
+    for a, b in zip(serial, procs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_dask_matches_serial(dask_client):
+    items = list(range(7))
+    serial = run_map(seeded_vector, items, backend="serial")
+    dsk = run_map(seeded_vector, items, scheduler=dask_client, chunksize=2)
+    for a, b in zip(serial, dsk, strict=True):
+        np.testing.assert_array_equal(a, b)
+    # an address works as well as a client
+    addr = run_map(square_or_fail, [5, 6], backend="dask", scheduler=dask_client.scheduler.address)
+    assert addr == [25, 36]
+
+
+@pytest.mark.parametrize("backend", ["serial", "processes"])
+def test_on_error_return_collects_exception(backend):
+    out = run_map(square_or_fail, [1, 2, 3, 4], backend=backend, n_jobs=2, on_error="return",
+                  chunksize=2)
+    assert out[0] == 1 and out[1] == 4 and out[3] == 16
+    assert isinstance(out[2], ValueError)
+    assert "bad item 3" in str(out[2])
+    assert "square_or_fail" in out[2].geoshape_traceback
+
+
+def test_on_error_return_dask(dask_client):
+    out = run_map(square_or_fail, [3, 2], scheduler=dask_client, on_error="return")
+    assert isinstance(out[0], ValueError) and out[1] == 4
+
+
+@pytest.mark.parametrize("backend", ["serial", "processes"])
+def test_on_error_raise(backend):
+    with pytest.raises(ValueError, match="bad item 3"):
+        run_map(square_or_fail, [1, 3, 4], backend=backend, n_jobs=2, chunksize=1)
+
+
+def test_bad_options():
+    with pytest.raises(InvalidOptionError, match="backend must be one of.*'threads'"):
+        run_map(abs, [1], backend="threads")
+    with pytest.raises(InvalidOptionError, match="on_error"):
+        run_map(abs, [1], backend="serial", on_error="ignore")
+    with pytest.raises(InvalidOptionError, match="n_jobs"):
+        run_map(abs, [1], backend="serial", n_jobs=0)
+    with pytest.raises(InvalidOptionError, match="scheduler"):
+        run_map(abs, [1], backend="serial", scheduler="tcp://127.0.0.1:1")
+    with pytest.raises(InvalidOptionError, match="backend"):
+        pairwise_matrix(l1, ITEMS, backend="gpu")
+
+
+def test_empty():
+    assert run_map(abs, [], backend="processes") == []
+    assert pairwise_matrix(l1, [], backend="serial").shape == (0, 0)
+
+
+@pytest.mark.parametrize("block_size", [1, 2, 5])
+def test_pairwise_symmetric_serial(block_size):
+    D = pairwise_matrix(l1, ITEMS, backend="serial", block_size=block_size)
+    np.testing.assert_array_equal(D, EXPECTED_L1)
+    Dv = pairwise_matrix(l1_block, ITEMS, vectorized=True, backend="serial",
+                         block_size=block_size, diagonal=-1.0)
+    expected = EXPECTED_L1.copy()
+    np.fill_diagonal(expected, -1.0)
+    np.testing.assert_array_equal(Dv, expected)
+
+
+def test_pairwise_asymmetric_backends(dask_client):
+    expected = np.array([[ordered_diff(a, b) for b in ITEMS] for a in ITEMS])
+    for kw in ({"backend": "serial"}, {"backend": "processes", "n_jobs": 2},
+               {"scheduler": dask_client}):
+        D = pairwise_matrix(ordered_diff, ITEMS, symmetric=False, block_size=2, **kw)
+        np.testing.assert_array_equal(D, expected)
+    D = pairwise_matrix(l1, ITEMS, backend="processes", n_jobs=2, block_size=2)
+    np.testing.assert_array_equal(D, EXPECTED_L1)
