@@ -78,7 +78,9 @@ def read_labels(folder: str | os.PathLike, filename: str = "labels.csv") -> list
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or not {"file", "label"} <= set(reader.fieldnames):
-            raise DatasetError(f"{path}: header must contain 'file' and 'label', got {reader.fieldnames}")
+            raise DatasetError(
+                f"{path}: header must contain 'file' and 'label', got {reader.fieldnames}"
+            )
         items = []
         for lineno, row in enumerate(reader, start=2):
             if not row.get("file"):
@@ -121,7 +123,14 @@ def read_vts(path: str | os.PathLike) -> np.ndarray:
     return ids.astype(np.int64) - 1
 
 
-def read_pairs(folder: str | os.PathLike, filename: str = "pairs.csv", check_files: bool = True) -> list[Pair]:
+def _optional_vts(folder: Path, row: dict, column: str) -> np.ndarray | None:
+    value = (row.get(column) or "").strip()
+    return read_vts(folder / value) if value else None
+
+
+def read_pairs(
+    folder: str | os.PathLike, filename: str = "pairs.csv", check_files: bool = True
+) -> list[Pair]:
     """Rows of ``folder/pairs.csv`` (paths resolved relative to ``folder``).
 
     With ``check_files=False`` missing meshes are not reported here (a batch reports
@@ -136,7 +145,9 @@ def read_pairs(folder: str | os.PathLike, filename: str = "pairs.csv", check_fil
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or not required <= set(reader.fieldnames):
-            raise DatasetError(f"{path}: header must contain 'source' and 'target', got {reader.fieldnames}")
+            raise DatasetError(
+                f"{path}: header must contain 'source' and 'target', got {reader.fieldnames}"
+            )
         for lineno, row in enumerate(reader, start=2):
             src, tgt = folder / row["source"], folder / row["target"]
             if check_files:
@@ -144,17 +155,18 @@ def read_pairs(folder: str | os.PathLike, filename: str = "pairs.csv", check_fil
                     if not p.is_file():
                         raise DatasetError(f"{path}:{lineno}: mesh {p.name!r} does not exist")
 
-            def vts(col: str) -> np.ndarray | None:
-                value = (row.get(col) or "").strip()
-                return read_vts(folder / value) if value else None
-
-            sl, tl, ts = vts("source_landmarks"), vts("target_landmarks"), vts("target_symmetric_landmarks")
+            sl, tl, ts = (
+                _optional_vts(folder, row, col)
+                for col in ("source_landmarks", "target_landmarks", "target_symmetric_landmarks")
+            )
             if (sl is None) != (tl is None):
                 raise DatasetError(f"{path}:{lineno}: give both source and target landmarks or neither")
             if sl is not None and len(sl) != len(tl):
                 raise DatasetError(f"{path}:{lineno}: {len(sl)} source vs {len(tl)} target landmarks")
             if ts is not None and tl is not None and len(ts) != len(tl):
-                raise DatasetError(f"{path}:{lineno}: symmetric landmarks differ in count from target landmarks")
+                raise DatasetError(
+                    f"{path}:{lineno}: symmetric landmarks differ in count from target landmarks"
+                )
             pairs.append(Pair(src, tgt, sl, tl, ts))
     if not pairs:
         raise DatasetError(f"{path}: no rows")
