@@ -340,9 +340,12 @@ def geodesic_errors(
     Notes
     -----
     Time: one pair distance per distinct (predicted, true) pair — about 1–6 ms each
-    with ``"exact"`` on a 5k-vertex mesh (measured, see :class:`GeodesicErrorEvaluator`),
-    i.e. roughly 5–30 s for 5000 landmarks and 1–6 s for the 1000-sample identity
-    default. Memory ``O(n2 + k)``.
+    with ``"exact"`` on a 5k-vertex mesh (see :class:`GeodesicErrorEvaluator`).
+    Measured on TOSCA cat4 (5000 vertices, 2 busy shared cores), 1000 landmarks:
+    2.6 s against the direct truth with predictions 0–3 edges off (mean error 0.019),
+    7.5 s against the mirrored truth (mean 0.21, 38 % above 0.25 kept as edge-flip
+    lengths). So a 5000-landmark TOSCA pair costs about 15–50 s with both scores, and
+    the 1000-sample identity default a few seconds. Memory ``O(n2 + k)``.
 
     Examples
     --------
