@@ -341,8 +341,11 @@ class Template(NamedTuple):
     skeleton: Skeleton
 
 
-def _skinning_weights(sk: Skeleton, V: np.ndarray, sharpness: float) -> np.ndarray:
-    """Smooth weights from distances to the bones, limited to bones touching the nearest."""
+def _skinning_weights(
+    sk: Skeleton, V: np.ndarray, F: np.ndarray, sharpness: float, smoothing: int
+) -> np.ndarray:
+    """Smooth weights from distances to the bones, limited to bones touching the nearest,
+    then averaged ``smoothing`` times over mesh neighbours (softens concave creases)."""
     D, R = _bone_distances(sk, V)  # (n, B)
     bones = sk.bones
     B = len(bones)
@@ -359,7 +362,20 @@ def _skinning_weights(sk: Skeleton, V: np.ndarray, sharpness: float) -> np.ndarr
     excess = (D - D[np.arange(len(V)), nearest][:, None]) / tau[:, None]
     W = np.where(allowed, np.exp(-excess), 0.0)
     W[W < 1e-6] = 0.0
-    return W / W.sum(axis=1, keepdims=True)
+    W /= W.sum(axis=1, keepdims=True)
+    if smoothing > 0:
+        import scipy.sparse as sp
+
+        n = len(V)
+        E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n)).tocsr()
+        A = ((A + A.T) > 0).astype(np.float64)
+        mean = sp.diags(1.0 / np.asarray(A.sum(axis=1)).ravel()) @ A
+        for _ in range(int(smoothing)):
+            W = 0.5 * W + 0.5 * (mean @ W)
+        W[W < 1e-6] = 0.0
+        W /= W.sum(axis=1, keepdims=True)
+    return W
 
 
 def build_template(
@@ -369,6 +385,7 @@ def build_template(
     resolution: int = 128,
     blend: float | None = None,
     skin_sharpness: float = 0.5,
+    skin_smoothing: int = 3,
 ) -> Template:
     """Skin a skeleton into one watertight manifold mesh with skinning weights.
 
@@ -386,6 +403,8 @@ def build_template(
     skin_sharpness : float
         Width of the weight transition around a joint, as a fraction of the local
         tube radius (smaller = stiffer joints).
+    skin_smoothing : int
+        Rounds of neighbour averaging of the weights (0 = raw distance weights).
 
     Returns
     -------
@@ -456,7 +475,7 @@ def build_template(
         )
     if _signed_volume(V, F) < 0:
         F = F[:, ::-1].copy()
-    W = _skinning_weights(skeleton, V, float(skin_sharpness))
+    W = _skinning_weights(skeleton, V, F, float(skin_sharpness), int(skin_smoothing))
     return Template(V, F, W, skeleton)
 
 
