@@ -495,13 +495,14 @@ def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     )
 
 
-def random_pose(skeleton: Skeleton, seed: int, *, amount: float = 1.0) -> np.ndarray:
+def random_pose(skeleton: Skeleton, seed, *, amount: float = 1.0) -> np.ndarray:
     """Joint angles drawn uniformly within ``amount`` x each joint's limits.
 
     Parameters
     ----------
     skeleton : Skeleton
-    seed : int
+    seed : int or sequence of int
+        Seed of the draw (anything ``numpy.random.default_rng`` accepts).
     amount : float
         Fraction of the joint limits used, in [0, 1].
 

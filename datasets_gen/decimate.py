@@ -14,6 +14,7 @@ parameter left out from the previous call of the same filter.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -145,6 +146,12 @@ def decimate_exact(
     GeoshapeError
         The exact map cannot be established (should not happen for a valid mesh).
 
+    Warns
+    -----
+    RuntimeWarning
+        A manifold input gave a non-manifold output (only possible without
+        ``preserve_topology``).
+
     Notes
     -----
     Time O(m log m) per pass (priority queue of edge collapses), memory O(n + m).
@@ -183,6 +190,15 @@ def decimate_exact(
     Vd = np.ascontiguousarray(mesh.vertex_matrix(), dtype=np.float64)
     Fd = np.ascontiguousarray(mesh.face_matrix(), dtype=np.int64)
     ids = _recover_ids(V, Vd, np.asarray(mesh.vertex_scalar_array(), dtype=np.float64))
+    from datasets_gen._topology import topology_report
+
+    if not topology_report(Fd).manifold and topology_report(F).manifold:
+        warnings.warn(
+            f"decimation to {ratio:g} produced non-manifold elements from a manifold mesh "
+            "(keep preserve_topology=True to avoid this)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     return Decimated(Vd, Fd, ids, len(Vd) / n)
 
 
