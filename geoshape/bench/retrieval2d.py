@@ -1,0 +1,71 @@
+"""Shared driver of the 2D retrieval benchmarks (``geoshape bench kimia99|tari1000``).
+
+For each method of the registry: the all-pairs matrix on the data set with the default
+backend (processes on all cores), its wall time (descriptors + matching; image reading
+excluded), and the retrieval scores; one Markdown table into ``docs/RESULTS.md``.
+"""
+
+from __future__ import annotations
+
+ALL_METHODS = ("default", "gsc", "shape_context", "idsc", "curvature_map")
+
+
+def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
+    parser.add_argument("--methods", default=",".join(default_methods),
+                        help=f"comma-separated methods (default: {','.join(default_methods)})")
+    parser.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    parser.add_argument("--backend", default=None, help="processes (default), serial, dask")
+    parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
+    parser.add_argument("--matrix-dir", default=None,
+                        help="also save each method's matrix as <dir>/<set>_<method>.npy")
+    parser.add_argument("--no-write", action="store_true",
+                        help="print the table but do not update docs/RESULTS.md")
+
+
+def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
+    import os
+    import platform
+    import time
+    from pathlib import Path
+
+    from geoshape._options import check_choice
+    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.correspondence.contour_methods import METHODS
+    from geoshape.io.atomic import save_npy_atomic
+    from geoshape.io.datasets import dataset_dir
+    from geoshape.retrieval.contours import retrieval_on_folder
+
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    for m in methods:
+        check_choice("method", m, METHODS)
+    folder = dataset_dir(dataset)
+    rows = []
+    for m in methods:
+        print(f"[{dataset}] {m} …", flush=True)
+        res = retrieval_on_folder(folder, m, n_points=args.n_points, backend=args.backend,
+                                  n_jobs=args.n_jobs)
+        met = res["metrics"]
+        counts = met["top_k_counts"]
+        rows.append([m, METHODS[m]["summary"], " ".join(str(c) for c in counts),
+                     f"{met['top_k_total']}/{met['top_k_max']}", f"{met['bulls_eye']:.2f}",
+                     f"{met['map']:.4f}", f"{res['seconds_descriptors']:.1f}",
+                     f"{res['seconds']:.1f}"])
+        print(f"  top-k {counts} total {met['top_k_total']}, bull's-eye {met['bulls_eye']:.2f} %, "
+              f"mAP {met['map']:.4f}, {res['seconds']:.1f} s", flush=True)
+        if args.matrix_dir:
+            save_npy_atomic(Path(args.matrix_dir) / f"{dataset}_{m}.npy", res["D"])
+    header = ["method", "what", "top-1..10 counts", "top-10 total", "bull's-eye %", "mAP",
+              "descriptors s", "all-pairs s"]
+    table = markdown_table(header, rows)
+    workers = args.n_jobs or os.cpu_count()
+    stamp = time.strftime("%Y-%m-%d")
+    md = (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
+          f"Command: `geoshape bench {dataset} --methods {','.join(methods)}` "
+          f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
+          f"{workers} workers, {platform.machine()}; times are wall-clock on a shared machine, "
+          f"so upper bounds). Primary score: {primary}.\n\n{table}\n")
+    print(md)
+    if not args.no_write:
+        path = update_results_section(f"retrieval2d-{dataset}", md)
+        print(f"updated {path}")
+    return 0

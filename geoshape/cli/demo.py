@@ -1,0 +1,84 @@
+"""``geoshape demo --out DIR``: the main job in one command, on generated silhouettes.
+
+Generates a small set of articulated silhouettes (``datasets_gen.silhouettes2d``), matches
+two poses of one figure (picture), runs all-pairs retrieval on the set (matrix picture,
+metrics as Markdown and JSON) and prints a short summary. Runs in a few seconds.
+"""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "demo",
+        help="generate articulated silhouettes, match two, run retrieval; write pictures and tables",
+        description="Writes into DIR: silhouettes/ (PNGs + labels.csv), match2d.png, "
+        "match2d_pairs.csv, retrieval_matrix.png, retrieval_matrix.npy, metrics.md, metrics.json.",
+    )
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--method", default="default",
+                   help="2D method: default, gsc, shape_context, idsc, curvature_map")
+    p.add_argument("--per-class", type=int, default=4, help="poses per class (default 4)")
+    p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
+    p.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    import json
+    import time
+    from pathlib import Path
+
+    from datasets_gen.silhouettes2d import generate_silhouettes
+    from geoshape.bench.results import markdown_table
+    from geoshape.cli._common import to_jsonable
+    from geoshape.correspondence.contour_methods import METHODS, match_contours, method_spec
+    from geoshape.errors import InvalidOptionError
+    from geoshape.io.atomic import save_npy_atomic, write_text_atomic
+    from geoshape.io.silhouette import contour_from_image
+    from geoshape.plot2d import plot_contour_matching, plot_distance_matrix
+    from geoshape.retrieval.contours import retrieval_on_folder
+
+    method_spec(args.method)
+    if args.per_class < 2:
+        raise InvalidOptionError(f"--per-class must be at least 2, got {args.per_class}")
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    sil = out / "silhouettes"
+    paths = generate_silhouettes(sil, per_class=args.per_class, seed=args.seed)
+
+    a, b = paths[0], paths[1]  # two poses of the first class (person)
+    P, Q = contour_from_image(a), contour_from_image(b)
+    p2p, cost = match_contours(P, Q, method=args.method)
+    plot_contour_matching(P, Q, p2p, out / "match2d.png",
+                          title=f"{a.name} ↔ {b.name} ({args.method}, cost {cost:.3g})")
+    rows = "".join(f"{i},{j}\n" for i, j in enumerate(p2p))
+    write_text_atomic(out / "match2d_pairs.csv", "a_index,b_index\n" + rows)
+
+    res = retrieval_on_folder(sil, args.method, backend="serial")
+    met = res["metrics"]
+    save_npy_atomic(out / "retrieval_matrix.npy", res["D"])
+    plot_distance_matrix(res["D"], out / "retrieval_matrix.png", labels=res["labels"],
+                         title=f"{args.method}: {len(res['files'])} articulated silhouettes")
+    k = len(met["top_k_counts"])
+    table = markdown_table(
+        ["method", "shapes", "classes", f"top-1..{k} counts", "top-k total", "bull's-eye %",
+         "nearest neighbour", "mAP", "seconds"],
+        [[args.method, met["n"], met["n_classes"], " ".join(map(str, met["top_k_counts"])),
+          f"{met['top_k_total']}/{met['top_k_max']}", f"{met['bulls_eye']:.1f}",
+          f"{met['nearest_neighbor']:.3f}", f"{met['map']:.3f}", f"{res['seconds']:.2f}"]],
+    )
+    md = (f"# geoshape demo\n\nRetrieval on {met['n']} generated articulated silhouettes "
+          f"(seed {args.seed}); method `{args.method}`: {METHODS[args.method]['summary']}.\n\n"
+          f"{table}\n\nMatch picture: `match2d.png` ({a.name} ↔ {b.name}, cost {cost:.4g}).\n")
+    write_text_atomic(out / "metrics.md", md)
+    summary = {"method": args.method, "match": {"a": a.name, "b": b.name, "cost": cost},
+               "files": res["files"], "labels": res["labels"], "metrics": met,
+               "seconds": res["seconds"]}
+    write_text_atomic(out / "metrics.json", json.dumps(to_jsonable(summary), indent=2) + "\n")
+    took = time.perf_counter() - t0
+    print(f"geoshape demo: {met['n']} silhouettes in {met['n_classes']} classes -> {sil}")
+    print(f"  match {a.name} <-> {b.name}: cost {cost:.4g} -> {out / 'match2d.png'}")
+    print(f"  retrieval ({args.method}): nearest neighbour {met['nearest_neighbor']:.3f}, "
+          f"bull's-eye {met['bulls_eye']:.1f} %, mAP {met['map']:.3f}")
+    print(f"  wrote retrieval_matrix.png, metrics.md, metrics.json in {out} ({took:.1f} s)")
+    return 0

@@ -1,0 +1,312 @@
+"""The registry of 2D matching methods and :func:`match_contours`.
+
+A *method* names a point descriptor (or a weighted combination of several), the point cost,
+and a matcher. The registry ``METHODS`` is what the command line and the docs list:
+
+============== ======================================== ============ ===========================
+name           descriptor                               point cost   matcher
+============== ======================================== ============ ===========================
+``gsc``        geodesic shape context, hysteresis       squared L2   proximity heuristic
+               thresholding (thesis, faithful)                       (2 anchors), best match
+``shape_context`` shape context 5×12, tangent-relative  χ²           Hungarian
+``idsc``       inner-distance shape context 8×12        Hellinger    cyclic DP
+``curvature_map`` sampled curvature map                 squared L2   best match
+``default``    inner-distance shape context + geodesic  Hellinger +  cyclic DP, mirror images
+               shape context                            squared L2   tried too
+============== ======================================== ============ ===========================
+
+Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
+an embedding ``X (N, K)`` in which the point cost is a squared Euclidean distance (histograms
+enter as ``sqrt(h / 2)``, so the squared distance is the squared Hellinger distance, in
+[0, 1]) — a cost matrix is then one matrix product — or, for ``χ²``, the histograms
+themselves.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geoshape._options import check_choice
+from geoshape.correspondence.contour_matching import (
+    MATCHERS,
+    batch_match_costs,
+    best_match,
+    cyclic_dp_match,
+    hungarian_match,
+    proximity_match,
+)
+from geoshape.errors import InvalidOptionError
+from geoshape.io.validate import check_contour
+
+__all__ = [
+    "DESCRIPTORS",
+    "METHODS",
+    "DEFAULT_METHOD",
+    "ContourSignature",
+    "method_spec",
+    "contour_signature",
+    "signature_cost_matrices",
+    "pair_costs",
+    "match_contours",
+]
+
+
+def _gsc(P, **kw):
+    from geoshape.correspondence.contour_descriptors import geodesic_shape_context
+
+    return geodesic_shape_context(P, **kw)
+
+
+def _sc(P, **kw):
+    from geoshape.correspondence.shape_context import shape_context
+
+    return shape_context(P, **kw)
+
+
+def _idsc(P, **kw):
+    from geoshape.correspondence.inner_distance import inner_distance_shape_context
+
+    return inner_distance_shape_context(P, **kw)
+
+
+def _cmap(P, **kw):
+    from geoshape.correspondence.contour_descriptors import curvature_map
+
+    return curvature_map(P, **kw)
+
+
+#: Point descriptors by name: function ``(P, **options) -> (N, K)``.
+DESCRIPTORS = {
+    "gsc": _gsc,
+    "shape_context": _sc,
+    "idsc": _idsc,
+    "curvature_map": _cmap,
+}
+
+#: How a descriptor enters the embedding: ``raw`` as is, ``hist`` as sqrt(h/2) (Hellinger).
+_TRANSFORMS = ("raw", "hist")
+
+#: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
+#: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image.
+METHODS: dict[str, dict] = {
+    "default": dict(
+        parts=(("idsc", 1.0, "hist", {}), ("gsc", 0.02, "raw", {})),
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
+        mirror=True,
+        summary="inner-distance shape context + geodesic shape context, cyclic DP, mirror-aware",
+    ),
+    "gsc": dict(
+        parts=(("gsc", 1.0, "raw", dict(threshold="hysteresis", bins="thesis", window=4)),),
+        metric="sqeuclidean", matcher="proximity", matcher_options=dict(c1=10.0, c2=10.0),
+        mirror=False,
+        summary="geodesic shape context + proximity heuristic, best match (thesis, faithful)",
+    ),
+    "shape_context": dict(
+        parts=(("shape_context", 1.0, "hist", {}),),
+        metric="chi2", matcher="hungarian", matcher_options={}, mirror=False,
+        summary="shape context (Belongie 2002), chi-squared cost, Hungarian",
+    ),
+    "idsc": dict(
+        parts=(("idsc", 1.0, "hist", {}),),
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
+        mirror=False,
+        summary="inner-distance shape context (Ling & Jacobs 2007), cyclic DP",
+    ),
+    "curvature_map": dict(
+        parts=(("curvature_map", 1.0, "raw", {}),),
+        metric="sqeuclidean", matcher="best", matcher_options={}, mirror=False,
+        summary="sampled 2D curvature map, best match",
+    ),
+}
+
+#: The method used when none is named (chosen by ``geoshape bench kimia99/tari1000``).
+DEFAULT_METHOD = "default"
+
+
+def method_spec(method: str, **overrides) -> dict:
+    """The registry entry of ``method`` with keyword overrides (``matcher=``, ``mirror=``, …).
+
+    Unknown override keys raise :class:`InvalidOptionError` listing the allowed ones.
+    """
+    check_choice("method", method, METHODS)
+    spec = dict(METHODS[method])
+    spec["matcher_options"] = dict(spec["matcher_options"])
+    for key, value in overrides.items():
+        if value is None:
+            continue
+        if key in ("matcher", "metric", "mirror", "parts"):
+            spec[key] = value
+        elif key in ("skip_cost", "n_starts", "c1", "c2"):
+            spec["matcher_options"][key] = value
+        else:
+            raise InvalidOptionError(
+                f"unknown option {key!r} for method {method!r}; allowed: matcher, metric, "
+                "mirror, parts, skip_cost, n_starts, c1, c2"
+            )
+    check_choice("matcher", spec["matcher"], MATCHERS)
+    check_choice("metric", spec["metric"], ("sqeuclidean", "chi2"))
+    for name, _, transform, _ in spec["parts"]:
+        check_choice("descriptor", name, DESCRIPTORS)
+        check_choice("transform", transform, _TRANSFORMS)
+    if spec["metric"] == "chi2" and (len(spec["parts"]) != 1 or spec["parts"][0][2] != "hist"):
+        raise InvalidOptionError("metric 'chi2' needs exactly one histogram descriptor")
+    return spec
+
+
+@dataclass(frozen=True)
+class ContourSignature:
+    """Everything a method needs about one contour, computed once.
+
+    ``X (N, K)``: embedded descriptors; ``s (N,)``: arc-length positions / perimeter;
+    ``X_mirror``: the same for the mirror image (``None`` unless the method uses it).
+    """
+
+    X: np.ndarray
+    s: np.ndarray
+    X_mirror: np.ndarray | None = None
+
+
+def _embed(P: np.ndarray, spec: dict) -> np.ndarray:
+    blocks = []
+    for name, weight, transform, options in spec["parts"]:
+        H = np.asarray(DESCRIPTORS[name](P, **options), dtype=np.float64)
+        if spec["metric"] == "chi2":
+            blocks.append(H)
+            continue
+        H = np.sqrt(np.maximum(H, 0.0) / 2.0) if transform == "hist" else H
+        blocks.append(np.sqrt(weight) * H)
+    return np.ascontiguousarray(np.hstack(blocks))
+
+
+def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = None,
+                      name: str = "contour") -> ContourSignature:
+    """Compute the per-shape signature of ``P`` for ``method``.
+
+    Cost: the descriptors' (O(N³) for ``idsc``'s visibility graph, O(N²) for shape context,
+    O(N·B) for ``gsc``), twice with ``mirror``.
+    """
+    from geoshape.geometry.contour import arc_length, mirror_contour, perimeter
+
+    spec = spec if spec is not None else method_spec(method)
+    P = check_contour(P, name=name)
+    s = arc_length(P) / perimeter(P)
+    X = _embed(P, spec)
+    Xm = _embed(mirror_contour(P), spec) if spec["mirror"] else None
+    return ContourSignature(X, s, Xm)
+
+
+def _chi2(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """½ Σ (a − b)² / (a + b) for all rows of ``A (N, K)`` against ``B (b, M, K)``: (b, N, M)."""
+    A32 = A.astype(np.float32)[:, None, :]
+    out = np.empty((len(B), A.shape[0], B.shape[1]))
+    for t, Bt in enumerate(B.astype(np.float32)):
+        num = (A32 - Bt[None]) ** 2
+        den = A32 + Bt[None]
+        out[t] = 0.5 * (num / np.where(den > 0, den, 1.0)).sum(axis=2)
+    return out
+
+
+def signature_cost_matrices(X1: np.ndarray, X2s: np.ndarray, metric: str) -> np.ndarray:
+    """Point cost matrices of one embedding ``X1 (N, K)`` against a stack ``X2s (B, M, K)``.
+
+    Returns ``(B, N, M)``. O(B·N·M·K) — a single matrix product for ``sqeuclidean``.
+    """
+    if metric == "chi2":
+        return _chi2(X1, X2s)
+    n1 = (X1**2).sum(axis=1)
+    n2 = (X2s**2).sum(axis=2)
+    G = np.matmul(X2s, np.ascontiguousarray(X1.T)).transpose(0, 2, 1)  # (B, N, M)
+    C = n1[None, :, None] + n2[:, None, :] - 2.0 * G
+    return np.maximum(C, 0.0, out=C)
+
+
+def pair_costs(sig1: ContourSignature, sigs2: list[ContourSignature], spec: dict) -> np.ndarray:
+    """Retrieval distances from one signature to several: ``(len(sigs2),)``.
+
+    With ``mirror`` the distance is the smaller of the costs against each shape and against
+    its mirror image. Shapes in ``sigs2`` must have equal point counts (they are stacked).
+    """
+    if not sigs2:
+        return np.zeros(0)
+    X2 = np.stack([s.X for s in sigs2])
+    s2 = np.stack([s.s for s in sigs2])
+    s1 = np.broadcast_to(sig1.s, (len(sigs2), len(sig1.s)))
+    C = signature_cost_matrices(sig1.X, X2, spec["metric"])
+    if spec["mirror"]:
+        X2m = np.stack([s.X_mirror for s in sigs2])
+        Cm = signature_cost_matrices(sig1.X, X2m, spec["metric"])
+        C = np.stack([C, Cm], axis=1)  # (B, 2, N, M)
+        # Mirror point i is the reflection of point -i, so its arc-length position is 1 - s.
+        s2m = np.mod(1.0 - np.roll(s2[:, ::-1], 1, axis=1), 1.0)
+        s2 = np.stack([s2, s2m], axis=1)
+    return batch_match_costs(C, spec["matcher"], s1=s1, s2=s2, **spec["matcher_options"])
+
+
+def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.ndarray, float]:
+    """Point-to-point correspondence and matching cost between two closed contours.
+
+    Parameters
+    ----------
+    P : (N, 2) array_like
+        Contour 1: closed, counter-clockwise, points roughly uniform by arc length (as
+        :func:`geoshape.io.silhouette.extract_contour` gives).
+    Q : (M, 2) array_like
+        Contour 2, same conventions.
+    method : str
+        A key of ``METHODS`` (``default``, ``gsc``, ``shape_context``, ``idsc``,
+        ``curvature_map``).
+    **options
+        Overrides of the method's entry: ``matcher`` (``best``, ``proximity``,
+        ``hungarian``, ``dp``), ``mirror``, ``skip_cost``, ``n_starts``, ``c1``, ``c2``.
+
+    Returns
+    -------
+    p2p_12 : (N,) int64
+        For each point of ``P``, the index of its match in ``Q``.
+    cost : float
+        Per-point matching cost in the direction P → Q (``SimCost / N`` for ``gsc``). The
+        retrieval distance of :func:`geoshape.retrieval.contours.shape_distance_matrix` is
+        the average of both directions for the (asymmetric) ``best``/``proximity`` matchers.
+        With ``mirror`` and a better match to the mirror image of ``Q``, ``p2p_12`` indexes
+        the points of ``Q`` all the same.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    >>> P = np.c_[np.cos(t) * (1 + 0.3 * np.cos(3 * t)), np.sin(t) * (1 + 0.3 * np.cos(3 * t))]
+    >>> p2p, cost = match_contours(P, 2 * np.roll(P, 5, axis=0), method="idsc")
+    >>> int(np.mean(p2p == (np.arange(64) - 5) % 64) > 0.9)
+    1
+    """
+    spec = method_spec(method, **options)
+    P = check_contour(P, name="contour 1")
+    Q = check_contour(Q, name="contour 2")
+    sig1 = contour_signature(P, spec=spec, name="contour 1")
+    sig2 = contour_signature(Q, spec=spec, name="contour 2")
+    M = len(Q)
+    candidates = [(sig2.X, sig2.s, np.arange(M))]
+    if spec["mirror"]:
+        mirror_index = (-np.arange(M)) % M  # mirror point j is the reflection of point -j
+        candidates.append((sig2.X_mirror, np.mod(1.0 - sig2.s[mirror_index], 1.0), mirror_index))
+    best = None
+    for X2, s2, index in candidates:
+        C = signature_cost_matrices(sig1.X, X2[None], spec["metric"])[0]
+        p2p, cost = _match_one(C, sig1.s, s2, spec)
+        if best is None or cost < best[1]:
+            best = (index[p2p].astype(np.int64), float(cost))
+    return best
+
+
+def _match_one(C: np.ndarray, s1: np.ndarray, s2: np.ndarray, spec: dict):
+    opts = spec["matcher_options"]
+    matcher = spec["matcher"]
+    if matcher == "best":
+        return best_match(C)
+    if matcher == "proximity":
+        return proximity_match(C, s1, s2, c1=opts.get("c1", 1.0), c2=opts.get("c2", 1.0))
+    if matcher == "hungarian":
+        return hungarian_match(C)
+    return cyclic_dp_match(C, skip_cost=opts.get("skip_cost", 0.3),
+                           n_starts=opts.get("n_starts", 4))
