@@ -37,6 +37,7 @@ def run(args) -> int:
     from geoshape.io.silhouette import contour_from_image
     from geoshape.plot2d import plot_contour_matching, plot_distance_matrix
     from geoshape.retrieval.contours import retrieval_on_folder
+    from geoshape.retrieval.metrics import retrieval_metrics
 
     method_spec(args.method)
     if args.per_class < 2:
@@ -55,7 +56,8 @@ def run(args) -> int:
     write_text_atomic(out / "match2d_pairs.csv", "a_index,b_index\n" + rows)
 
     res = retrieval_on_folder(sil, args.method, backend="serial")
-    met = res["metrics"]
+    # Top-k counts only make sense up to the class size minus the query.
+    met = retrieval_metrics(res["D"], res["labels"], max_rank=args.per_class - 1)
     save_npy_atomic(out / "retrieval_matrix.npy", res["D"])
     plot_distance_matrix(res["D"], out / "retrieval_matrix.png", labels=res["labels"],
                          title=f"{args.method}: {len(res['files'])} articulated silhouettes")

@@ -1,0 +1,85 @@
+"""The 2D command-line contract: match2d, retrieval2d (atomic, clean failure), bench, demo."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from datasets_gen.silhouettes2d import generate_silhouettes
+from geoshape.__main__ import main
+
+
+@pytest.fixture(scope="module")
+def silhouettes(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sil")
+    generate_silhouettes(folder, per_class=2, classes=("person", "star", "snake"), seed=0)
+    return folder
+
+
+def test_match2d_writes_pairs_and_plot(silhouettes, tmp_path, capsys):
+    out, fig = tmp_path / "pairs.csv", tmp_path / "fig.png"
+    code = main(["match2d", str(silhouettes / "person_0.png"), str(silhouettes / "person_1.png"),
+                 "--method", "gsc", "--out", str(out), "--plot", str(fig)])
+    assert code == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "a_index,b_index,a_x,a_y,b_x,b_y" and len(lines) == 101
+    assert fig.stat().st_size > 1000
+    assert "cost" in capsys.readouterr().out
+
+
+def test_match2d_bad_method_and_bad_image(silhouettes, tmp_path, capsys):
+    assert main(["match2d", str(silhouettes / "person_0.png"), str(silhouettes / "star_0.png"),
+                 "--method", "nope"]) == 2
+    assert "method must be one of" in capsys.readouterr().err
+    blank = tmp_path / "blank.png"
+    from PIL import Image
+
+    Image.fromarray(np.zeros((20, 20), np.uint8)).save(blank)
+    assert main(["match2d", str(blank), str(silhouettes / "star_0.png")]) == 2
+    assert "blank.png" in capsys.readouterr().err
+
+
+def test_retrieval2d_outputs(silhouettes, tmp_path):
+    matrix, js, fig = tmp_path / "D.npy", tmp_path / "m.json", tmp_path / "D.png"
+    code = main(["retrieval2d", str(silhouettes), "--method", "gsc", "--matrix", str(matrix),
+                 "--json", str(js), "--plot", str(fig), "--backend", "serial"])
+    assert code == 0
+    D = np.load(matrix)
+    assert D.shape == (6, 6) and np.allclose(D, D.T)
+    report = json.loads(js.read_text())
+    assert report["files"][0] == "person_0.png" and len(report["top_k_counts"]) == 5
+    assert {"bulls_eye", "map", "seconds", "top_k_total"} <= set(report)
+    assert fig.stat().st_size > 1000
+
+
+def test_retrieval2d_bad_file_stops_cleanly(silhouettes, tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "set"
+    shutil.copytree(silhouettes, folder)
+    (folder / "star_1.png").write_bytes(b"garbage")
+    matrix = tmp_path / "D.npy"
+    assert main(["retrieval2d", str(folder), "--matrix", str(matrix), "--backend", "serial"]) == 2
+    assert "star_1.png" in capsys.readouterr().err
+    assert not matrix.exists()
+    (folder / "star_1.png").unlink()
+    assert main(["retrieval2d", str(folder), "--matrix", str(matrix), "--backend", "serial"]) == 2
+    assert "star_1.png" in capsys.readouterr().err
+    assert not matrix.exists() and not list(tmp_path.glob(".D.npy*"))
+
+
+def test_bench_lists_2d_benchmarks(capsys):
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    out = capsys.readouterr().out
+    assert "kimia99" in out and "tari1000" in out
+
+
+def test_demo_runs(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--per-class", "2", "--method", "gsc"]) == 0
+    for name in ("match2d.png", "retrieval_matrix.png", "metrics.md", "metrics.json",
+                 "silhouettes/labels.csv"):
+        assert (tmp_path / name).is_file()
+    assert "bull's-eye" in capsys.readouterr().out
