@@ -1,0 +1,189 @@
+"""``geoshape bench correspondence DIR``: geodesic error and time of every method, with pyFM.
+
+For each pair of ``DIR/pairs.csv`` (or ``--pairs``) and each method: the map is computed
+end to end (meshes loaded, every per-mesh precomputation included — nothing is cached
+across pairs, so times are honest per-pair times), then scored by the geodesic error on
+the target divided by √area (:mod:`geoshape.correspondence.evaluation`), direct and
+symmetry-aware. Landmark ground truth (``.vts``) is subsampled to ``--landmarks`` seeded
+landmarks per pair; identity ground truth uses the same number of random vertices.
+SCAPE (identity ids) has no mirrored map of all vertices: its symmetry-aware score uses
+the 36 SCB feature points (``Corrs/1.pid``) with their left/right pairs (``1.sym.info``),
+as in Kim et al.'s benchmark; other identity sets report direct errors only.
+
+The off-the-shelf peer is pyFM (``pip install pyfmaps``, never a dependency of geoshape),
+run with its README's recommended settings: WKS descriptors, K = 30, orientation term
+on, ZoomOut refinement nit = 16, step = 5.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+HELP = "3D correspondence: geodesic errors and times of every method (and pyFM) on a pairs set"
+DEFAULT_METHODS = "geoshape,jz,improved-sb,shapiro-brady,rigid-icp,shape-context-3d"
+THRESHOLDS = (0.025, 0.05, 0.1, 0.25)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dir", metavar="DIR", help="dataset folder holding pairs.csv and the meshes")
+    p.add_argument("--pairs", default="pairs.csv", help="pairs file (relative to DIR), default pairs.csv")
+    p.add_argument("--limit", type=int, default=None, help="only the first N pairs")
+    p.add_argument("--methods", default=DEFAULT_METHODS, help=f"comma-separated (default {DEFAULT_METHODS})")
+    p.add_argument("--peer", choices=("pyfm", "none"), default="pyfm", help="off-the-shelf peer to run too")
+    p.add_argument("--landmarks", type=int, default=1000, help="landmarks evaluated per pair (seeded subset)")
+    p.add_argument("--section", default=None, help="RESULTS.md section name (default from DIR and pairs)")
+    p.add_argument("--plot", default=None,
+                   help="cumulative-error plot (default docs/img/correspondence_<set>.png)")
+    p.add_argument("--no-results", action="store_true", help="print only; do not write docs/RESULTS.md")
+    p.add_argument("--seed", type=int, default=0)
+
+
+def run_pyfm(V1, F1, V2, F2) -> np.ndarray:
+    """p2p_12 (source → target) from pyFM's recommended pipeline."""
+    from pyFM.functional import FunctionalMapping
+    from pyFM.mesh import TriMesh
+
+    target = TriMesh(V2, F2, area_normalize=True, center=True)
+    source = TriMesh(V1, F1, area_normalize=True, center=True)
+    model = FunctionalMapping(target, source)  # p2p_21 of (target, source) maps source → target
+    model.preprocess(descr_type="WKS", subsample_step=2, verbose=False)
+    model.fit(K=30, w_descr=1e0, w_lap=1e-1, w_dcomm=1e0, w_orient=1e0, verbose=False)
+    fm = model.zoomout_refine(nit=16, step=5, verbose=False)
+    return np.asarray(model.get_p2p(fm, n_jobs=1), dtype=np.int64)
+
+
+def scape_feature_points(folder: Path):
+    """(ids, mirrored ids) of SCAPE's SCB feature points, or None if absent."""
+    pid, sym = folder / "Corrs" / "1.pid", folder / "Corrs" / "1.sym.info"
+    if not (pid.is_file() and sym.is_file()):
+        return None
+    ids = np.loadtxt(pid, ndmin=2)[:, 0].astype(np.int64)
+    mirror = np.arange(len(ids))
+    for line in sym.read_text().splitlines():
+        parts = line.split()
+        if len(parts) == 2:
+            a, b = int(parts[0]), int(parts[1])
+            mirror[a], mirror[b] = b, a
+    return ids, ids[mirror]
+
+
+def _landmark_sets(pair, n_vertices_1, n_vertices_2, n_landmarks, seed, feature_points):
+    """(source ids, target ids, target mirrored ids or None) to evaluate."""
+    rng = np.random.default_rng(seed)
+    if pair.identity:
+        if feature_points is not None:
+            ids, sym = feature_points
+            return ids, ids, sym
+        n = min(n_vertices_1, n_vertices_2)
+        ids = np.sort(rng.choice(n, min(n_landmarks, n), replace=False))
+        return ids, ids, None
+    k = len(pair.source_landmarks)
+    sel = np.sort(rng.choice(k, min(n_landmarks, k), replace=False))
+    sym = None if pair.target_symmetric_landmarks is None else pair.target_symmetric_landmarks[sel]
+    return pair.source_landmarks[sel], pair.target_landmarks[sel], sym
+
+
+def run(args: argparse.Namespace) -> int:
+    from geoshape._options import check_choice
+    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors, plot_error_curves
+    from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, correspond
+    from geoshape.errors import GeoshapeError
+    from geoshape.io.datasets import read_pairs
+    from geoshape.io.mesh_io import load_mesh
+
+    folder = Path(args.dir)
+    methods = [m for m in args.methods.split(",") if m]
+    for m in methods:
+        check_choice("correspondence method", m, CORRESPONDENCE_METHODS)
+    if args.peer == "pyfm":
+        try:
+            import pyFM  # noqa: F401
+        except ImportError:
+            print("pyFM is not installed (pip install pyfmaps); running without the peer")
+        else:
+            methods.append("pyfm")
+    pairs = read_pairs(folder, args.pairs)[: args.limit]
+    feature_points = scape_feature_points(folder)
+    errs = {m: [] for m in methods}
+    errs_sym = {m: [] for m in methods}
+    times = {m: [] for m in methods}
+    failures = {m: 0 for m in methods}
+    evaluators: dict = {}
+    for pi, pair in enumerate(pairs):
+        V1, F1 = load_mesh(pair.source)
+        V2, F2 = load_mesh(pair.target)
+        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), args.landmarks, args.seed + pi,
+                                       feature_points)
+        ev = evaluators.setdefault(str(pair.target), GeodesicErrorEvaluator(V2, F2))
+        if len(evaluators) > 4:
+            evaluators.pop(next(iter(evaluators)))
+        line = [f"[{pi + 1}/{len(pairs)}] {pair.source.name} -> {pair.target.name}:"]
+        for m in methods:
+            t = time.perf_counter()
+            try:
+                if m == "pyfm":
+                    p2p = run_pyfm(V1, F1, V2, F2)
+                else:
+                    p2p = correspond(V1, F1, V2, F2, method=m, seed=args.seed).p2p_12
+            except GeoshapeError as exc:
+                failures[m] += 1
+                line.append(f"{m} FAILED ({exc})")
+                continue
+            times[m].append(time.perf_counter() - t)
+            r = geodesic_errors(V2, F2, p2p[src], tgt, sym, evaluator=ev)
+            errs[m].append(r["errors"])
+            errs_sym[m].append(r.get("errors_sym_aware", r["errors"]) if sym is not None else r["errors"])
+            line.append(f"{m} {r['mean']:.3f}/{r.get('mean_sym_aware', float('nan')):.3f} {times[m][-1]:.1f}s")
+        print(" ".join(line), flush=True)
+
+    has_sym = any(p.target_symmetric_landmarks is not None for p in pairs) or feature_points is not None
+    header = ["method", "mean error", "mean error (sym-aware)"]
+    header += [f"≤ {t} (%)" for t in THRESHOLDS] + ["median s/pair", "pairs", "failed"]
+    rows = []
+    for m in methods:
+        if not errs[m]:
+            rows.append([m] + ["—"] * (len(header) - 3) + [0, failures[m]])
+            continue
+        e = np.concatenate(errs[m])
+        per_pair = [x.mean() for x in errs[m]]
+        per_pair_sym = [x.mean() for x in errs_sym[m]]
+        es = np.concatenate(errs_sym[m])
+        row = [m, float(np.mean(per_pair)), float(np.mean(per_pair_sym)) if has_sym else "—"]
+        row += [f"{100 * np.mean(e <= t):.1f}" + (f" ({100 * np.mean(es <= t):.1f})" if has_sym else "")
+                for t in THRESHOLDS]
+        row += [float(np.median(times[m])), len(errs[m]), failures[m]]
+        rows.append(row)
+    table = markdown_table(header, rows)
+    ratio = ""
+    if "pyfm" in methods and errs.get("geoshape") and errs["pyfm"]:
+        g_err = np.mean([x.mean() for x in errs["geoshape"]])
+        p_err = np.mean([x.mean() for x in errs["pyfm"]])
+        g_t, p_t = np.median(times["geoshape"]), np.median(times["pyfm"])
+        ratio = (f"\ngeoshape / pyFM: mean direct error ratio {g_err / p_err:.3f}, "
+                 f"median time ratio {g_t / p_t:.3f}\n")
+    set_name = f"{folder.name}/{args.pairs}" + (f" (first {args.limit})" if args.limit else "")
+    cmd = (f"geoshape bench correspondence {args.dir} --pairs {args.pairs}"
+           + (f" --limit {args.limit}" if args.limit else "") + f" --landmarks {args.landmarks}")
+    sym_note = ("symmetry-aware on the 36 SCB feature points" if feature_points is not None
+                else "symmetry-aware: per pair the better of direct and mirrored ground truth")
+    text = (f"### 3D correspondence — {set_name}\n\nCommand: `{cmd}`. Errors: geodesic distance / √area on "
+            f"the target, mean over pairs of the per-pair mean ({sym_note}); ≤ t: share of landmarks "
+            f"(direct, in parentheses symmetry-aware). Times: end to end per pair, one process.\n\n"
+            f"{table}\n{ratio}")
+    print(text)
+    plot = args.plot
+    if plot is None and not args.no_results:
+        plot = Path(__file__).resolve().parents[2] / "docs" / "img" / f"correspondence_{folder.name}.png"
+    if plot:
+        curves = {m: np.concatenate(errs[m]) for m in methods if errs[m]}
+        plot_error_curves(curves, plot, title=f"Cumulative geodesic error — {set_name}")
+        text += f"\n![cumulative error](img/{Path(plot).name})\n"
+    if not args.no_results:
+        section = args.section or f"correspondence-{folder.name}-{Path(args.pairs).stem}"
+        update_results_section(section, text)
+    return 0

@@ -1,0 +1,344 @@
+"""Dense correspondence between two triangle meshes: the registry of methods.
+
+``correspond(V1, F1, V2, F2, method=...)`` returns a :class:`Correspondence` whose
+``p2p_12[i]`` is the vertex of mesh 2 matched to vertex ``i`` of mesh 1.
+
+Methods (``CORRESPONDENCE_METHODS``):
+
+- ``geoshape`` (default): the thesis' spectral alignment gives candidate initial maps
+  (best signed eigenvector orders, typically the two mirror solutions), each is refined
+  by non-rigid TPS-ICP in the spectral domain and then by ZoomOut on the
+  Laplace–Beltrami basis; the candidate whose mapped triangles keep their orientation
+  (:mod:`~geoshape.correspondence.orientation`) and whose functional map is closest to
+  an isometry wins.
+- ``jz``: the thesis pipeline, faithfully: geodesic Gaussian affinity (σ = max
+  geodesic), k = 6 eigenvectors scaled by √λ with the first dropped (5-D), exhaustive
+  reordering and sign correction, TPS non-rigid ICP, proximity-aided matching with 3
+  anchors; ``bijective=True`` adds a one-to-one assignment.
+- ``shapiro-brady``: unscaled eigenvectors, greedy sign correction, no reordering,
+  best match.  ``improved-sb``: the same with √λ scaling.
+- ``rigid-icp``: similarity ICP in 3-D space from the principal axes.
+- ``shape-context-3d``: 3-D log-polar shape-context histograms (trivial 3-D extension of
+  Belongie et al.) after principal-axis alignment, χ²-like (Hellinger) nearest match.
+
+Per-mesh precomputations (embedding, geodesic solver, Laplacian basis, samples) live in
+:class:`PreparedMesh`, so a batch computes them once per mesh.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoshape._options import check_choice
+from geoshape.correspondence.icp import nonrigid_icp, rigid_icp
+from geoshape.correspondence.nn import nearest
+from geoshape.correspondence.orientation import orientation_score
+from geoshape.correspondence.proximity import proximity_anchors, proximity_match
+from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
+from geoshape.errors import InvalidMeshError, InvalidOptionError
+from geoshape.io.validate import check_mesh
+
+log = logging.getLogger(__name__)
+
+CORRESPONDENCE_METHODS = (
+    "geoshape",
+    "jz",
+    "shapiro-brady",
+    "improved-sb",
+    "rigid-icp",
+    "shape-context-3d",
+)
+DEFAULT_METHOD = "geoshape"
+MIN_VERTICES = 10
+
+
+@dataclass
+class Correspondence:
+    """Result of :func:`correspond`.
+
+    Attributes
+    ----------
+    p2p_12 : (n1,) int64 — for each vertex of mesh 1, a vertex of mesh 2
+    cost : float — the method's own cost of the chosen solution (lower is better)
+    method : str
+    alignment : the chosen signed eigenvector order of mesh 2 (spectral methods)
+    alternatives : list of dicts — the candidate solutions considered, with their costs
+        (e.g. the best and runner-up sign configurations: mirror-symmetric maps)
+    timings : dict — seconds per stage
+    details : dict — method-specific extras (anchors, orientation scores, …)
+    """
+
+    p2p_12: np.ndarray
+    cost: float
+    method: str
+    alignment: Alignment | None = None
+    alternatives: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    details: dict = field(default_factory=dict)
+
+
+class PreparedMesh:
+    """A mesh with its lazily computed, cached per-mesh precomputations.
+
+    Keys of the caches include every parameter, so two methods with different settings
+    never share a stale result. Memory: O(n l) for a Nyström embedding, O(n k) for a
+    Laplacian basis of k eigenpairs.
+    """
+
+    def __init__(self, V, F, name: str = "mesh"):
+        self.V, self.F = check_mesh(V, F, name=name)
+        if len(self.V) < MIN_VERTICES:
+            raise InvalidMeshError(
+                f"{name}: {len(self.V)} vertices is too few for a correspondence (need >= {MIN_VERTICES})"
+            )
+        self.name = name
+        self._cache: dict = {}
+
+    @property
+    def n(self) -> int:
+        return len(self.V)
+
+    def cached(self, key, compute):
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
+    def solver(self, method: str = "graph"):
+        from geoshape.geometry.geodesics import GeodesicSolver
+
+        return self.cached(("solver", method), lambda: GeodesicSolver(self.V, self.F, method))
+
+    def embedding(self, k: int = 5, *, scaling: str = "sqrt", sigma="max", n_samples: int | None = None,
+                  method: str = "auto", geodesics: str = "graph", seed: int = 0):
+        from geoshape.spectral.embedding import spectral_embedding
+
+        key = ("embedding", k, scaling, sigma, n_samples, method, geodesics, seed)
+        return self.cached(key, lambda: spectral_embedding(
+            self.V, self.F, k=k, method=method, n_samples=n_samples, sigma=sigma, scaling=scaling,
+            geodesics=geodesics, seed=seed, solver=self.solver(geodesics)))
+
+    def laplacian(self, k: int):
+        from geoshape.spectral.laplacian import laplacian_basis
+
+        best = [key for key in self._cache if key[0] == "laplacian" and key[1] >= k]
+        if best:
+            return self._cache[min(best)]
+        return self.cached(("laplacian", k), lambda: laplacian_basis(self.V, self.F, k, name=self.name))
+
+    def samples(self, n: int, seed: int = 0):
+        """``n`` farthest-point samples in Euclidean space (O(n_vertices · n)), cached."""
+        from geoshape.correspondence.reorder import embedding_samples
+
+        n = min(n, self.n)
+        return self.cached(("samples", n, seed), lambda: embedding_samples(self.V, n, seed))
+
+    def geodesic_row(self, v: int) -> np.ndarray:
+        return self.solver("graph").distances([v])[0]
+
+
+def _prepared(mesh_or_V, F, name) -> PreparedMesh:
+    if isinstance(mesh_or_V, PreparedMesh):
+        return mesh_or_V
+    return PreparedMesh(mesh_or_V, F, name=name)
+
+
+def bijective_assignment(A: np.ndarray, B: np.ndarray, *, n_candidates: int = 16,
+                         dense_max: int = 3000) -> np.ndarray:
+    """One-to-one map between equally many embedded points minimising total distance.
+
+    Exact Hungarian (``linear_sum_assignment``) up to ``dense_max`` points; above that a
+    sparse min-weight perfect matching restricted to each point's ``n_candidates``
+    nearest neighbours (``min_weight_full_bipartite_matching``), which falls back to the
+    dense solver if the candidate graph has no perfect matching. Dense O(n^3) time,
+    O(n^2) memory; sparse roughly O(n c log n).
+    """
+    import scipy.sparse as sp
+    from scipy.optimize import linear_sum_assignment
+    from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+
+    from geoshape.correspondence.nn import k_nearest
+
+    if len(A) != len(B):
+        raise InvalidOptionError(f"bijective matching needs equal vertex counts, got {len(A)} and {len(B)}")
+    n = len(A)
+    if n > dense_max:
+        d, j = k_nearest(B, A, n_candidates)
+        G = sp.csr_matrix((d.ravel() + 1e-12, (np.repeat(np.arange(n), j.shape[1]), j.ravel())), shape=(n, n))
+        try:
+            _, cols = min_weight_full_bipartite_matching(G)
+            return np.asarray(cols, dtype=np.int64)
+        except ValueError:
+            log.warning("sparse candidate graph has no perfect matching; using the dense solver")
+    from scipy.spatial.distance import cdist
+
+    _, cols = linear_sum_assignment(cdist(A, B))
+    return np.asarray(cols, dtype=np.int64)
+
+
+def _spectral_candidates(m1, m2, *, k, scaling, reorder, n_keep, n_samples, seed, timings):
+    t = time.perf_counter()
+    e1 = m1.embedding(k, scaling=scaling, n_samples=n_samples, seed=seed)
+    e2 = m2.embedding(k, scaling=scaling, n_samples=n_samples, seed=seed)
+    timings["embedding"] = time.perf_counter() - t
+    t = time.perf_counter()
+    alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed)
+    timings["reorder"] = time.perf_counter() - t
+    return e1.coords, e2.coords, alignments
+
+
+def _jz(m1, m2, *, k=5, reorder="exhaustive", icp_iterations=8, n_controls=300, anchors=3,
+        proximity=True, bijective=False, n_samples=None, seed=0, n_candidates=20):
+    timings = {}
+    A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=2,
+                                            n_samples=n_samples, seed=seed, timings=timings)
+    best = alignments[0]
+    t = time.perf_counter()
+    Bw, icp_info = nonrigid_icp(A, best.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed)
+    timings["icp"] = time.perf_counter() - t
+    t = time.perf_counter()
+    details = {"icp": icp_info}
+    if bijective:
+        p2p = bijective_assignment(A, Bw)
+    elif proximity and anchors > 0:
+        pairs, G1, G2 = proximity_anchors(A, Bw, m1.geodesic_row, m2.geodesic_row,
+                                          n_anchors=anchors, n_candidates=n_candidates)
+        p2p = proximity_match(A, Bw, G1, G2, n_candidates=n_candidates)
+        details["anchors"] = pairs
+    else:
+        p2p = nearest(Bw, A)[1]
+    timings["matching"] = time.perf_counter() - t
+    cost = float(np.linalg.norm(A - Bw[p2p], axis=1).sum())
+    alts = [{"perm": a.perm, "signs": a.signs, "cost": a.cost} for a in alignments]
+    return Correspondence(p2p, cost, "jz", best, alts, timings, details)
+
+
+def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=6, icp_iterations=6, n_controls=200,
+              lb_k=60, screen_k=20, screen_samples=600, zoomout_start=6, zoomout_step=2,
+              zoomout_samples=1500, n_samples=None, seed=0):
+    from geoshape.correspondence.zoomout import zoomout
+
+    timings = {}
+    A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=n_keep,
+                                            n_samples=n_samples, seed=seed, timings=timings)
+    t = time.perf_counter()
+    lb_k = min(lb_k, m1.n - 1, m2.n - 1)
+    screen_k = min(screen_k, lb_k)
+    b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
+    c1, c2 = m1.samples(screen_samples, seed), m2.samples(screen_samples, seed)
+    timings["laplacian"] = time.perf_counter() - t
+    # 1. screen every candidate alignment with a coarse ZoomOut on few samples
+    t = time.perf_counter()
+    candidates = []
+    for a in alignments:
+        Bw, _ = nonrigid_icp(A, a.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed)
+        init = nearest(Bw, A)[1]
+        coarse, energy = zoomout(b1, b2, init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
+                                 step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
+                                 final_on_samples=True)
+        orient = orientation_score(m1.V, m1.F, m2.V, m2.F, coarse)
+        candidates.append({"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": energy,
+                           "orientation": orient, "p2p": coarse, "alignment": a})
+    timings["screening"] = time.perf_counter() - t
+    # prefer orientation-preserving maps, then the most isometric functional map
+    chosen = min(candidates, key=lambda c: (c["orientation"] <= 0, c["zoomout_energy"]))
+    # 2. refine the chosen one to the full basis on more samples, then every vertex
+    t = time.perf_counter()
+    s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
+    p2p, energy = zoomout(b1, b2, chosen["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                          samples1=s1, samples2=s2, return_energy=True)
+    timings["refinement"] = time.perf_counter() - t
+    orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+    alts = [{key: c[key] for key in ("perm", "signs", "cost", "zoomout_energy", "orientation")}
+            for c in candidates]
+    return Correspondence(p2p, energy, "geoshape", chosen["alignment"], alts, timings,
+                          {"orientation": orient})
+
+
+def _shapiro_brady(m1, m2, *, scaling, name, k=5, n_samples=None, seed=0):
+    timings = {}
+    A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling=scaling, reorder="signs", n_keep=2,
+                                            n_samples=n_samples, seed=seed, timings=timings)
+    best = alignments[0]
+    t = time.perf_counter()
+    d, p2p = nearest(best.apply(B), A)
+    timings["matching"] = time.perf_counter() - t
+    alts = [{"perm": a.perm, "signs": a.signs, "cost": a.cost} for a in alignments]
+    return Correspondence(p2p, float(d.sum()), name, best, alts, timings)
+
+
+def _rigid(m1, m2):
+    t = time.perf_counter()
+    X2, p2p = rigid_icp(m1.V, m2.V)
+    d = np.linalg.norm(m1.V - X2[p2p], axis=1)
+    return Correspondence(p2p, float(d.sum()), "rigid-icp", timings={"icp": time.perf_counter() - t})
+
+
+def _shape_context(m1, m2, **options):
+    from geoshape.correspondence.shape_context3d import match_shape_context_3d
+
+    t = time.perf_counter()
+    p2p, cost = match_shape_context_3d(m1.V, m2.V, **options)
+    return Correspondence(p2p, cost, "shape-context-3d", timings={"matching": time.perf_counter() - t})
+
+
+def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, **options) -> Correspondence:
+    """Dense vertex correspondence from mesh 1 to mesh 2.
+
+    Parameters
+    ----------
+    V1, F1, V2, F2 : arrays ``(n, 3)``, ``(m, 3)``; or pass :class:`PreparedMesh` objects
+        as ``V1`` and ``V2`` (with ``F1 = F2 = None``) to reuse per-mesh precomputations.
+    method : str
+        One of :data:`CORRESPONDENCE_METHODS`.
+    **options
+        Method options, e.g. ``k``, ``reorder`` ({"exhaustive", "greedy", "pairwise"}),
+        ``icp_iterations``, ``anchors``, ``bijective`` (jz), ``lb_k``, ``n_keep`` (geoshape),
+        ``n_samples`` (Nyström samples), ``seed``.
+
+    Returns
+    -------
+    Correspondence
+
+    Examples
+    --------
+    >>> c = correspond(V1, F1, V2, F2)  # doctest: +SKIP
+    >>> c.p2p_12.shape  # doctest: +SKIP
+    (5000,)
+
+    Notes
+    -----
+    ``geoshape`` on two 5k-vertex meshes: two Nyström embeddings O(l n log n), the
+    exhaustive reordering O(k! 2^k s^2) on s = 300 samples, n_keep × (TPS-ICP O(c^3) +
+    ZoomOut O(iter · s^2 k)), two Laplacian eigenproblems; measured times are in
+    docs/RESULTS.md (``geoshape bench correspondence``).
+    """
+    check_choice("correspondence method", method, CORRESPONDENCE_METHODS)
+    if "reorder" in options:
+        check_choice("reordering method", options["reorder"], REORDER_METHODS)
+    m1 = _prepared(V1, F1, "source mesh")
+    m2 = _prepared(V2, F2, "target mesh")
+    t0 = time.perf_counter()
+    try:
+        if method == "geoshape":
+            result = _geoshape(m1, m2, **options)
+        elif method == "jz":
+            result = _jz(m1, m2, **options)
+        elif method == "shapiro-brady":
+            result = _shapiro_brady(m1, m2, scaling="none", name=method, **options)
+        elif method == "improved-sb":
+            result = _shapiro_brady(m1, m2, scaling="sqrt", name=method, **options)
+        elif method == "rigid-icp":
+            result = _rigid(m1, m2, **options)
+        else:
+            result = _shape_context(m1, m2, **options)
+    except TypeError as exc:
+        if "unexpected keyword" in str(exc):
+            raise InvalidOptionError(f"method {method!r}: {exc}") from None
+        raise
+    result.timings["total"] = time.perf_counter() - t0
+    result.p2p_12 = np.asarray(result.p2p_12, dtype=np.int64)
+    return result
