@@ -27,7 +27,7 @@ def register(subparsers) -> None:
                    help="embedding dimensions K (K+1 eigenpairs, the first dropped; default 5)")
     p.add_argument("--samples", type=int, default=None, metavar="L",
                    help="Nystrom samples L (forces Nystrom; default: exact for <= 2000 vertices, "
-                   "else Nystrom with 100 samples)")
+                   "else Nystrom with 50 samples)")
     p.add_argument("--method", choices=("auto", "exact", "nystrom"), default="auto",
                    help="eigenpairs from all-pairs distances (exact) or sampled rows (nystrom)")
     p.add_argument("--affinity", choices=("geodesic", "euclidean", "combined"),

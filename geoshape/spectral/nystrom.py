@@ -31,7 +31,7 @@ from geoshape.errors import InvalidOptionError
 __all__ = ["DEFAULT_N_SAMPLES", "nystrom_eigenpairs"]
 
 #: default number of max-min samples (chosen from the fidelity benchmark, docs/RESULTS.md)
-DEFAULT_N_SAMPLES = 100
+DEFAULT_N_SAMPLES = 50
 
 
 def nystrom_eigenpairs(C: np.ndarray, samples: np.ndarray, m: int, *,
