@@ -12,22 +12,24 @@ HELP = "graph/heat geodesics vs exact (MMP) on tosca_r5k: relative error and tim
 
 def add_arguments(parser) -> None:
     parser.add_argument("--meshes", type=int, default=8,
-                        help="number of tosca_r5k meshes (one per class first; default 8)")
+                        help="number of tosca_r5k meshes (round-robin over classes; default 8)")
     parser.add_argument("--sources", type=int, default=3, help="sources per mesh (default 3)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-write", action="store_true", help="print only, do not update RESULTS.md")
 
 
 def pick_meshes(count: int) -> list:
-    """Up to ``count`` tosca_r5k files, one per class first, in labels.csv order."""
+    """Up to ``count`` tosca_r5k files, taken round-robin over the classes (labels.csv order)."""
     from geoshape.io.datasets import dataset_dir, read_labels
 
-    items = read_labels(dataset_dir("tosca_r5k"))
-    first, rest, seen = [], [], set()
-    for it in items:
-        (rest if it.label in seen else first).append(it.path)
-        seen.add(it.label)
-    return (first + rest)[:count]
+    by_class: dict[str, list] = {}
+    for it in read_labels(dataset_dir("tosca_r5k")):
+        by_class.setdefault(it.label, []).append(it.path)
+    picked, depth = [], 0
+    while len(picked) < count and any(depth < len(v) for v in by_class.values()):
+        picked += [v[depth] for v in by_class.values() if depth < len(v)]
+        depth += 1
+    return picked[:count]
 
 
 def run(args) -> int:

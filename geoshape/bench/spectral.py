@@ -25,7 +25,7 @@ SAMPLE_COUNTS = (10, 25, 50, 100, 200)
 def add_arguments(parser) -> None:
     parser.add_argument("--part", choices=("fidelity", "timing", "all"), default="all")
     parser.add_argument("--meshes", type=int, default=8,
-                        help="tosca_r5k meshes for the fidelity part (one per class first)")
+                        help="tosca_r5k meshes for the fidelity part (round-robin over classes)")
     parser.add_argument("--repeats", type=int, default=3, help="runs per timing case")
     parser.add_argument("--no-write", action="store_true", help="print only, do not update RESULTS.md")
 
