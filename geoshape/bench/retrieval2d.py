@@ -23,13 +23,10 @@ def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
 
 
 def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
-    import os
-    import platform
-    import time
     from pathlib import Path
 
     from geoshape._options import check_choice
-    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.bench.results import update_results_section
     from geoshape.correspondence.contour_methods import METHODS
     from geoshape.io.atomic import save_npy_atomic
     from geoshape.io.datasets import dataset_dir
@@ -54,18 +51,32 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
               f"mAP {met['map']:.4f}, {res['seconds']:.1f} s", flush=True)
         if args.matrix_dir:
             save_npy_atomic(Path(args.matrix_dir) / f"{dataset}_{m}.npy", res["D"])
+        # Write after every method, so a long run leaves its finished rows behind.
+        md = _section(dataset, args, methods, rows, intro, primary)
+        if not args.no_write:
+            update_results_section(f"retrieval2d-{dataset}", md)
+    print(md)
+    if not args.no_write:
+        print(f"updated section retrieval2d-{dataset} of docs/RESULTS.md")
+    return 0
+
+
+def _section(dataset, args, methods, rows, intro, primary) -> str:
+    import os
+    import platform
+    import time
+
+    from geoshape.bench.results import markdown_table
+
     header = ["method", "what", "top-1..10 counts", "top-10 total", "bull's-eye %", "mAP",
               "descriptors s", "all-pairs s"]
     table = markdown_table(header, rows)
     workers = args.n_jobs or os.cpu_count()
     stamp = time.strftime("%Y-%m-%d")
-    md = (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
-          f"Command: `geoshape bench {dataset} --methods {','.join(methods)}` "
-          f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
-          f"{workers} workers, {platform.machine()}; times are wall-clock on a shared machine, "
-          f"so upper bounds). Primary score: {primary}.\n\n{table}\n")
-    print(md)
-    if not args.no_write:
-        path = update_results_section(f"retrieval2d-{dataset}", md)
-        print(f"updated {path}")
-    return 0
+    done = "" if len(rows) == len(methods) else f" (rows so far: {len(rows)} of {len(methods)})"
+    return (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
+            f"Command: `geoshape bench {dataset} --methods {','.join(methods)}`{done} "
+            f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
+            f"{workers} workers, {platform.machine()}; 'all-pairs s' is the wall time of "
+            f"descriptors + all-pairs matrix, measured on a machine shared with other jobs, "
+            f"so an upper bound). Primary score: {primary}.\n\n{table}\n")

@@ -11,8 +11,9 @@ name           descriptor                               point cost   matcher
 ``shape_context`` shape context 5×12, tangent-relative  χ²           Hungarian
 ``idsc``       inner-distance shape context 8×12        Hellinger    cyclic DP
 ``curvature_map`` sampled curvature map                 squared L2   best match
-``default``    inner-distance shape context + geodesic  Hellinger +  cyclic DP, mirror images
-               shape context                            squared L2   tried too
+``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP
+               ½ shape context + 0.005 geodesic shape   squared L2
+               context (weighted concatenation)
 ============== ======================================== ============ ===========================
 
 Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
@@ -92,10 +93,11 @@ _TRANSFORMS = ("raw", "hist")
 #: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image.
 METHODS: dict[str, dict] = {
     "default": dict(
-        parts=(("idsc", 1.0, "hist", {}), ("gsc", 0.02, "raw", {})),
+        parts=(("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist", {}),
+               ("gsc", 0.005, "raw", {})),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
-        mirror=True,
-        summary="inner-distance shape context + geodesic shape context, cyclic DP, mirror-aware",
+        mirror=False,
+        summary="inner-distance SC 5x12 + 0.5 shape context + 0.005 geodesic SC, cyclic DP",
     ),
     "gsc": dict(
         parts=(("gsc", 1.0, "raw", dict(threshold="hysteresis", bins="thesis", window=4)),),

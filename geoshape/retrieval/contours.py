@@ -43,12 +43,25 @@ def contour_signatures(contours, method: str = DEFAULT_METHOD, *, backend: str |
                    n_jobs=n_jobs, progress=False)
 
 
+def _single_threaded_blas():
+    """Limit BLAS to one thread: the work is already spread over processes, and small
+    matrix products with several BLAS threads on busy cores spin and run ~10x slower."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # optional; without it BLAS keeps its own thread count
+        import contextlib
+
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _block_costs(sigs_a, sigs_b, spec):
     out = np.empty((len(sigs_a), len(sigs_b)))
     batch = 256
-    for r, sig in enumerate(sigs_a):
-        for c in range(0, len(sigs_b), batch):
-            out[r, c:c + batch] = pair_costs(sig, list(sigs_b[c:c + batch]), spec)
+    with _single_threaded_blas():
+        for r, sig in enumerate(sigs_a):
+            for c in range(0, len(sigs_b), batch):
+                out[r, c:c + batch] = pair_costs(sig, list(sigs_b[c:c + batch]), spec)
     return out
 
 
