@@ -179,10 +179,10 @@ def bijective_assignment(A: np.ndarray, B: np.ndarray, *, n_candidates: int = 16
     return np.asarray(cols, dtype=np.int64)
 
 
-def _spectral_candidates(m1, m2, *, k, scaling, reorder, n_keep, n_samples, seed, timings):
+def _spectral_candidates(m1, m2, *, k, scaling, reorder, n_keep, n_samples, seed, timings, sigma="max"):
     t = time.perf_counter()
-    e1 = m1.embedding(k, scaling=scaling, n_samples=n_samples, seed=seed)
-    e2 = m2.embedding(k, scaling=scaling, n_samples=n_samples, seed=seed)
+    e1 = m1.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
+    e2 = m2.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
     timings["embedding"] = time.perf_counter() - t
     t = time.perf_counter()
     alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed)
@@ -191,10 +191,11 @@ def _spectral_candidates(m1, m2, *, k, scaling, reorder, n_keep, n_samples, seed
 
 
 def _jz(m1, m2, *, k=5, reorder="exhaustive", icp_iterations=8, n_controls=300, anchors=3,
-        proximity=True, bijective=False, n_samples=None, seed=0, n_candidates=20):
+        proximity=True, bijective=False, n_samples=None, seed=0, n_candidates=20, scaling="sqrt",
+        sigma="max"):
     timings = {}
-    A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=2,
-                                            n_samples=n_samples, seed=seed, timings=timings)
+    A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling=scaling, reorder=reorder, n_keep=2,
+                                            n_samples=n_samples, seed=seed, timings=timings, sigma=sigma)
     best = alignments[0]
     t = time.perf_counter()
     Bw, icp_info = nonrigid_icp(A, best.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed)
@@ -296,7 +297,8 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, **op
         One of :data:`CORRESPONDENCE_METHODS`.
     **options
         Method options, e.g. ``k``, ``reorder`` ({"exhaustive", "greedy", "pairwise"}),
-        ``icp_iterations``, ``anchors``, ``bijective`` (jz), ``lb_k``, ``n_keep`` (geoshape),
+        ``icp_iterations``, ``anchors``, ``bijective``, ``scaling``, ``sigma`` (jz), ``lb_k``,
+        ``n_keep`` (geoshape),
         ``n_samples`` (Nyström samples), ``seed``.
 
     Returns
@@ -317,6 +319,10 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, **op
     docs/RESULTS.md (``geoshape bench correspondence``).
     """
     check_choice("correspondence method", method, CORRESPONDENCE_METHODS)
+    if "scaling" in options:
+        from geoshape.spectral.embedding import SCALINGS
+
+        check_choice("eigenvector scaling", options["scaling"], SCALINGS)
     if "reorder" in options:
         check_choice("reordering method", options["reorder"], REORDER_METHODS)
     m1 = _prepared(V1, F1, "source mesh")
