@@ -77,11 +77,13 @@ def visibility_graph(P, *, tol: float = 1e-6) -> np.ndarray:
         blocked[start:start + step] = (proper & ~incident).any(axis=1)
     mid = 0.5 * (S0 + S1)
     path = Path(np.vstack([P, P[:1]]), closed=True)
-    inside = path.contains_points(mid, radius=0.0) | path.contains_points(mid, radius=2 * eps) | \
-        path.contains_points(mid, radius=-2 * eps)
-    # Points on the boundary itself (e.g. along a straight part) count as inside.
-    near = _distance_to_polygon(mid, A, Bp) <= 2 * eps + 1e-12
-    ok = ~blocked & (inside | near)
+    ok = ~blocked
+    cand = np.flatnonzero(ok)
+    inside = path.contains_points(mid[cand])
+    # Midpoints on the boundary itself (e.g. along a straight part) count as inside.
+    rest = cand[~inside]
+    on_boundary = _distance_to_polygon(mid[rest], A, Bp) <= 2 * eps + 1e-12
+    ok[rest[~on_boundary]] = False
     vis = np.zeros((N, N), dtype=bool)
     vis[iu, ju] = ok
     vis |= vis.T
