@@ -32,6 +32,7 @@ _LAZY = {
     "as_arrays": "geoshape.io.interop",
     "load_silhouette": "geoshape.io.silhouette",
     "extract_contour": "geoshape.io.silhouette",
+    "MeshSet": "plugins.meshset",
 }
 
 __all__ = [
