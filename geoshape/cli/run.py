@@ -46,7 +46,9 @@ def _short(value) -> str:
 
 def run(args: argparse.Namespace) -> int:
     import logging
+    import sys
     import time
+    import warnings
 
     from plugins.meshset import MeshSet
 
@@ -60,7 +62,13 @@ def run(args: argparse.Namespace) -> int:
     for path in args.input:
         ms.load_new_mesh(path)
     ms.set_current_mesh(0)
-    applied = ms.apply_filter_script(args.script)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            applied = ms.apply_filter_script(args.script)
+        finally:
+            for w in caught:  # one line each on stderr, without the source line
+                print(f"geoshape run: warning: {w.message}", file=sys.stderr)
     out = ms.save_current_mesh(args.output)
     if args.save_script:
         ms.save_filter_script(args.save_script)
