@@ -5,6 +5,10 @@ MeshSet delegates any filter that is not its own to a fresh ``pymeshlab.MeshSet`
 copies of its meshes, then copies the results back. Every parameter is passed explicitly
 (PyMeshLab re-uses the value of a parameter left out from the previous call of the same
 filter): the defaults PyMeshLab computes on the current mesh, overridden by the caller's.
+Caveat: PyMeshLab's "defaults" of mesh-independent parameters are themselves the last
+values used in the process (its parameter state is global), so a call that leaves
+parameters out depends on earlier calls; the recorded script holds every value, and
+replaying it is exact. Give every parameter in scripts meant to be reproducible.
 
 Names. Python names (``meshing_decimation_quadric_edge_collapse``) are used as they are;
 a MeshLab display name ("Simplification: Quadric Edge Collapse Decimation") is turned

@@ -398,3 +398,22 @@ def test_acceptance_tosca_script_from_cli_and_python(tmp_path, capsys):
     assert out3.read_bytes() == out1.read_bytes()
     colors = ms.current_mesh().colors
     assert colors is not None and len(np.unique(colors.round(3), axis=0)) > 100
+
+
+def test_param_types_from_text_and_back():
+    from plugins.params import EnumParam, FilePathParam, IntListParam, PercentageParam
+
+    path = FilePathParam("map", "")
+    assert path.coerce(Path("a/b.npy")) == "a/b.npy"
+    with pytest.raises(FilterParameterError, match="expected a file path, got 3"):
+        path.coerce(3, "f")
+    ids = IntListParam("sources")
+    assert ids.from_mlx({"value": "1, 2 3"}) == (1, 2, 3)
+    assert ids.to_mlx((1, 2)) == {"type": "RichString", "value": "1 2"}
+    enum = EnumParam("m", "a", choices=("a", "b"))
+    assert enum.from_mlx(enum.to_mlx("b")) == "b"
+    with pytest.raises(FilterParameterError, match="enum index 5 out of range"):
+        enum.from_mlx({"value": "5"})
+    pct = PercentageParam("h", 5.0)
+    assert isinstance(pct.from_mlx({"type": "RichAbsPerc", "value": "0.2"}), AbsoluteValue)
+    assert pct.from_mlx(pct.to_mlx(2.5)) == 2.5
