@@ -67,6 +67,8 @@ class Mesh:
         self.colors = None if colors is None else self._per_vertex(colors, "colors", (4,))
         self.quality = None if quality is None else self._per_vertex(quality, "quality", ())
         self.selection = None if selection is None else np.asarray(selection, dtype=bool).reshape(-1)
+        if self.selection is not None and len(self.selection) != len(self.V):
+            raise FilterError(f"{name}: selection must have {len(self.V)} entries, got {len(self.selection)}")
         self.attributes: dict[str, np.ndarray] = dict(attributes or {})
         self._cache: dict = {}
 
