@@ -1,0 +1,104 @@
+"""``geoshape retrieval3d DIR --descriptor NAME --matrix OUT.npy``: all-pairs 3D retrieval.
+
+Contract (used by external evaluation; keep it stable): DIR holds meshes and
+``labels.csv`` (``file,label``); the N x N dissimilarity matrix is written in labels.csv row
+order; ``--json`` holds NN, FT, ST, E, DCG, mAP and seconds. Every output is written
+atomically after everything is computed; a mesh that cannot be read or described stops the
+command with its name (exit 2) and nothing is written.
+"""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    from geoshape.retrieval.descriptors import DESCRIPTORS, RETRIEVAL_METHODS
+
+    listing = "; ".join(f"{n}: {s.summary}" for n, s in DESCRIPTORS.items())
+    p = subparsers.add_parser(
+        "retrieval3d",
+        help="all-pairs dissimilarity matrix and retrieval scores of a folder of meshes",
+        description="DIR holds meshes and labels.csv (columns file,label). Computes one "
+        "descriptor per mesh (in parallel), the N x N dissimilarity matrix in labels.csv "
+        "row order (--matrix), and NN, FT, ST, E, DCG, mAP and timings (--json). "
+        f"Descriptors — {listing}; evd_ccd: EVD, then each query's top K re-ranked by CCD.",
+    )
+    p.add_argument("folder", metavar="DIR", help="folder with meshes and labels.csv")
+    p.add_argument("--descriptor", required=True, metavar="NAME",
+                   help=f"one of {', '.join(RETRIEVAL_METHODS)}")
+    p.add_argument("--affinity", default=None, metavar="KIND",
+                   help="geodesic (default), euclidean or combined: distances of the spectral "
+                   "embedding (evd, ccd, evd_ccd, *_emb only)")
+    p.add_argument("--matrix", required=True, metavar="OUT.npy", help="output N x N matrix")
+    p.add_argument("--json", metavar="OUT.json", help="output JSON with metrics and timing")
+    p.add_argument("--plot-pr", metavar="pr.png", help="output precision-recall curve")
+    p.add_argument("--plot-matrix", metavar="m.png", help="output similarity-matrix image")
+    p.add_argument("--rerank-k", type=int, default=None, metavar="K",
+                   help="evd_ccd: shortlist re-ranked by CCD (default 20)")
+    p.add_argument("--seed", type=int, default=0, help="seed of sampling (default 0)")
+    p.add_argument("--backend", default=None, help="processes (default), serial, dask")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="Dask scheduler address (implies --backend dask)")
+    p.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=int, default=None,
+                   help="workers (default: all cores)")
+    p.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    import json
+
+    from geoshape._options import check_choice
+    from geoshape.cli._common import to_jsonable
+    from geoshape.io.atomic import save_npy_atomic, write_text_atomic
+    from geoshape.parallel import BACKENDS
+    from geoshape.retrieval.descriptors import RERANKERS, RETRIEVAL_METHODS, descriptor_params
+    from geoshape.retrieval.meshes import DEFAULT_RERANK_K, retrieval3d_on_folder
+
+    check_choice("descriptor", args.descriptor, RETRIEVAL_METHODS)
+    for nm in RERANKERS.get(args.descriptor, (args.descriptor,)):
+        descriptor_params(nm, args.affinity, args.seed)
+    if args.backend is not None:
+        check_choice("backend", args.backend, BACKENDS)
+    if args.rerank_k is not None and args.descriptor not in RERANKERS:
+        from geoshape.errors import InvalidOptionError
+
+        raise InvalidOptionError(f"--rerank-k applies to {', '.join(RERANKERS)} only")
+    res = retrieval3d_on_folder(args.folder, args.descriptor, affinity=args.affinity,
+                                seed=args.seed, rerank_k=args.rerank_k or DEFAULT_RERANK_K,
+                                backend=args.backend, n_jobs=args.n_jobs,
+                                scheduler=args.scheduler)
+    m = res["metrics"]
+    keys = {"NN": "nearest_neighbor", "FT": "first_tier", "ST": "second_tier",
+            "E": "e_measure", "DCG": "dcg", "mAP": "map"}
+    summary = {
+        "descriptor": args.descriptor,
+        "affinity": args.affinity,
+        "n": len(res["files"]),
+        "files": res["files"],
+        "labels": res["labels"],
+        **{k: m.get(v) for k, v in keys.items()},
+        "seconds": res["seconds"],
+        "seconds_descriptors": res["seconds_descriptors"],
+        "seconds_matrix": res["seconds_matrix"],
+        "seconds_per_mesh": res["seconds_per_mesh"],
+        "metrics": m,
+    }
+    # Everything computed: now write (each output atomically).
+    save_npy_atomic(args.matrix, res["D"])
+    if args.json:
+        write_text_atomic(args.json, json.dumps(to_jsonable(summary), indent=2) + "\n")
+    name = args.descriptor + (f" ({args.affinity})" if args.affinity else "")
+    if args.plot_pr and m:
+        from geoshape.retrieval.metrics import plot_precision_recall
+
+        plot_precision_recall({name: m}, args.plot_pr, title=f"{name}, {summary['n']} meshes")
+    if args.plot_matrix:
+        from geoshape.retrieval.plots3d import plot_similarity_matrix
+
+        plot_similarity_matrix(res["D"], args.plot_matrix, labels=res["labels"],
+                               title=f"{name} ({summary['n']} meshes)")
+    print(f"{summary['n']} meshes, descriptor {name}, {res['seconds']:.1f} s")
+    if m:
+        print("NN {NN:.4f}  FT {FT:.4f}  ST {ST:.4f}  E {E:.4f}  DCG {DCG:.4f}  mAP {mAP:.4f}"
+              .format(**{k: summary[k] for k in keys}))
+    print(f"matrix: {args.matrix}")
+    return 0

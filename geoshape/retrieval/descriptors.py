@@ -1,0 +1,579 @@
+"""Global 3D shape descriptors, their registry and their distances (thesis §4.4, §4.6.2).
+
+Every descriptor is a function on one mesh ``(V, F) -> array`` registered in
+:data:`DESCRIPTORS` with the metric it is compared with. The registry is what the CLI,
+the index and the benchmark list.
+
+On the original mesh
+    ``d2`` (Osada et al. 2002 shape distribution), ``shapedna`` (Reuter et al. 2006,
+    Laplace–Beltrami eigenvalues), ``gsv`` (singular values of the sampled geodesic
+    distance matrix), ``shd`` (spherical harmonics, Kazhdan et al. 2003), ``lfd`` (light
+    field, Chen et al. 2003).
+On the 3D spectral embedding (thesis Fig. 4.10)
+    ``d2_emb``, ``shd_emb``, ``lfd_emb``: the same descriptors computed on the mesh whose
+    vertices are the 2nd–4th √λ-scaled eigenvectors of the affinity (first three columns of
+    ``spectral_embedding(V, F, k=3)``), same faces. The descriptors normalise translation
+    and scale themselves.
+Spectral
+    ``evd``: √ of the first 20 eigenvalues of the Nyström sample affinity, χ²
+    (:mod:`geoshape.spectral.evd`). ``ccd``: the correspondence cost descriptor — the
+    5-D embedding itself, subsampled to ``CCD_POINTS`` farthest points in embedding space;
+    two are compared by :func:`ccd_distance` (best match after aligning the eigenvectors).
+
+The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
+:data:`RETRIEVAL_METHODS`): rank by EVD, then re-rank each query's top ``K`` by CCD.
+
+``affinity`` (geodesic / Euclidean / combined) applies to the descriptors flagged
+``uses_affinity``; the others take none and reject one.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoshape._options import check_choice
+from geoshape.errors import InvalidOptionError
+from geoshape.io.validate import check_mesh
+
+__all__ = [
+    "DescriptorSpec",
+    "DESCRIPTORS",
+    "METRICS",
+    "RETRIEVAL_METHODS",
+    "DEFAULT_AFFINITY",
+    "CCD_POINTS",
+    "get_descriptor",
+    "descriptor_params",
+    "params_key",
+    "compute_descriptor",
+    "embedding_mesh",
+    "d2_descriptor",
+    "shapedna_descriptor",
+    "gsv_descriptor",
+    "ccd_descriptor",
+    "ccd_distance",
+    "descriptor_distances",
+    "descriptor_distance_matrix",
+    "rerank",
+]
+
+DEFAULT_AFFINITY = "geodesic"
+#: points of the 5-D embedding kept by the CCD descriptor
+CCD_POINTS = 100
+CCD_DIMS = 5
+#: eigenvector reordering used by CCD (see geoshape.correspondence.reorder)
+CCD_REORDER = "greedy"
+#: version of the stored descriptors; bump when a descriptor's numbers change
+DESCRIPTOR_VERSION = 1
+
+
+# ---------------------------------------------------------------------------------------
+# Helpers
+# ---------------------------------------------------------------------------------------
+
+
+def embedding_mesh(V, F, *, affinity: str = DEFAULT_AFFINITY, seed: int = 0,
+                   method: str = "auto") -> np.ndarray:
+    """Vertices of the 3D spectral embedding: 2nd–4th √λ-scaled eigenvectors (same faces).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    affinity : {"geodesic", "euclidean", "combined"}
+    seed : int
+    method : {"auto", "exact", "nystrom"}
+        As :func:`geoshape.spectral.embedding.spectral_embedding` (Nyström above 2000
+        vertices).
+
+    Returns
+    -------
+    X : (n, 3) float64
+        Centred at the vertex mean and scaled to unit RMS radius.
+
+    Notes
+    -----
+    Exact: O(n^2 log n) time, O(n^2) memory; Nyström: O(l n log n + n l^2), O(n l).
+    """
+    from geoshape.spectral.embedding import spectral_embedding
+
+    X = spectral_embedding(V, F, k=3, affinity=affinity, seed=seed, method=method).coords
+    X = X - X.mean(axis=0)
+    rms = float(np.sqrt((X * X).sum(axis=1).mean()))
+    return X / rms if rms > 0 else X
+
+
+def _pairwise_surface_distances(V, F, n_pairs: int, seed: int) -> np.ndarray:
+    from geoshape.retrieval.shd import surface_samples
+
+    P = surface_samples(V, F, 2 * n_pairs, seed)
+    return np.linalg.norm(P[:n_pairs] - P[n_pairs:], axis=1)
+
+
+# ---------------------------------------------------------------------------------------
+# Descriptors on one mesh
+# ---------------------------------------------------------------------------------------
+
+
+def d2_descriptor(V, F, *, n_pairs: int = 20000, bins: int = 64, max_ratio: float = 4.0,
+                  seed: int = 0) -> np.ndarray:
+    """D2 shape distribution: histogram of distances between random surface points.
+
+    Distances are divided by their mean (scale invariance, as Osada et al. propose), binned
+    on ``[0, max_ratio]`` (larger ratios go to the last bin) and normalised to sum 1.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    n_pairs : int
+        Random point pairs (area-weighted, seeded).
+    bins : int
+    max_ratio : float
+    seed : int
+
+    Returns
+    -------
+    hist : (bins,) float64, sums to 1. Compare with χ².
+
+    Notes
+    -----
+    Time O(m + n_pairs log m).
+    """
+    V, F = check_mesh(V, F, allow_no_faces=True)
+    d = _pairwise_surface_distances(V, F, n_pairs, seed)
+    mean = float(d.mean())
+    if not mean > 0:
+        raise InvalidOptionError("the shape has zero extent; no D2 descriptor can be computed")
+    h, _ = np.histogram(np.minimum(d / mean, max_ratio * (1 - 1e-12)), bins=bins,
+                        range=(0.0, max_ratio))
+    return h / h.sum()
+
+
+def shapedna_descriptor(V, F, *, k: int = 20) -> np.ndarray:
+    """ShapeDNA: the first ``k`` non-zero Laplace–Beltrami eigenvalues of the unit-area mesh.
+
+    Each eigenvalue ``λ_i`` is divided by ``i`` (Weyl's law makes ``λ_i`` grow linearly
+    in ``i`` on a surface), so every entry weighs about the same in the L2 distance.
+
+    Returns
+    -------
+    dna : (k,) float64. Compare with L2.
+
+    Notes
+    -----
+    One sparse factorisation, about O(n^1.5) (see :mod:`geoshape.spectral.laplacian`).
+    """
+    from geoshape.spectral.laplacian import laplacian_basis
+
+    V, F = check_mesh(V, F, allow_no_faces=True)
+    evals = laplacian_basis(V, F, k=k + 1).evals[1:]
+    return evals / np.arange(1, k + 1)
+
+
+def gsv_descriptor(V, F, *, n_samples: int = 60, k: int = 20, seed: int = 0) -> np.ndarray:
+    """Singular values of the Nyström geodesic distance matrix (sample block).
+
+    The ``l x l`` block of geodesic distances between ``l`` max-min samples is divided by
+    its largest entry (scale invariance) and its ``k`` largest singular values are kept;
+    with a fixed ``l`` they do not depend on the vertex count.
+
+    Returns
+    -------
+    sv : (k,) float64, non-increasing. Compare with L1.
+
+    Notes
+    -----
+    ``l`` geodesic rows, O(l n log n) with the graph backend, plus O(l^3).
+    """
+    from geoshape.geometry.sampling import farthest_point_sampling
+
+    V, F = check_mesh(V, F, allow_no_faces=True)
+    if not 1 <= k <= n_samples <= len(V):
+        raise InvalidOptionError(
+            f"gsv needs 1 <= k <= n_samples <= n vertices; got k={k}, n_samples={n_samples}, n={len(V)}"
+        )
+    samples, D = farthest_point_sampling(V, F, n_samples, seed=seed)
+    B = D[:, samples]
+    B = 0.5 * (B + B.T)
+    top = float(B[np.isfinite(B)].max())
+    if not top > 0:
+        raise InvalidOptionError("the shape has zero extent; no descriptor can be computed")
+    B = np.where(np.isfinite(B), B, top) / top
+    return np.linalg.svd(B, compute_uv=False)[:k]
+
+
+def ccd_descriptor(V, F, *, affinity: str = DEFAULT_AFFINITY, n_points: int = CCD_POINTS,
+                   k: int = CCD_DIMS, seed: int = 0) -> np.ndarray:
+    """The CCD "descriptor": ``n_points`` farthest points of the √λ-scaled k-D embedding.
+
+    Returns
+    -------
+    E : (min(n_points, n), k) float64
+        Rows of the embedding (Nyström above 2000 vertices), chosen by farthest-point
+        sampling in embedding space. Compare two with :func:`ccd_distance`.
+
+    Notes
+    -----
+    Embedding cost (see :func:`embedding_mesh`) plus O(n · n_points) for the sampling.
+    """
+    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.spectral.embedding import spectral_embedding
+
+    X = spectral_embedding(V, F, k=k, affinity=affinity, seed=seed).coords
+    return np.ascontiguousarray(X[embedding_samples(X, n_points, seed)])
+
+
+def ccd_distance(A, B, *, reorder: str = CCD_REORDER) -> float:
+    """Correspondence cost between two embeddings: symmetric mean best-match distance.
+
+    ``B``'s columns are first reordered and sign-corrected against ``A``
+    (:func:`geoshape.correspondence.reorder.align_embeddings`); then
+    ``0.5 * (mean_i min_j ‖A_i − B'_j‖ + mean_j min_i ‖A_i − B'_j‖)``. The thesis sums over
+    the vertices of one shape; the mean and the symmetrisation make shapes of different
+    sizes comparable and the distance symmetric up to the alignment search.
+
+    Parameters
+    ----------
+    A : (nA, k) float
+    B : (nB, k) float
+    reorder : {"exhaustive", "greedy", "pairwise", "signs", "none"}
+
+    Returns
+    -------
+    float
+
+    Notes
+    -----
+    Greedy: O(k^2 nA nB k); exhaustive: O(k! 2^k nA nB) (about 30x slower for k = 5).
+    """
+    from geoshape.correspondence.reorder import align_embeddings
+
+    A = np.asarray(A, dtype=np.float64)
+    B = np.asarray(B, dtype=np.float64)
+    best = align_embeddings(A, B, reorder, n_keep=1, max_points=max(len(A), len(B)))[0]
+    Bp = best.apply(B)
+    d2 = (A * A).sum(1)[:, None] + (Bp * Bp).sum(1)[None, :] - 2.0 * A @ Bp.T
+    d = np.sqrt(np.maximum(d2, 0.0))
+    return float(0.5 * (d.min(axis=1).mean() + d.min(axis=0).mean()))
+
+
+# ---------------------------------------------------------------------------------------
+# Registry
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DescriptorSpec:
+    """A registered descriptor.
+
+    Attributes
+    ----------
+    name : str
+        Stable id (CLI, index, results).
+    summary : str
+        One line for listings.
+    compute : callable
+        ``compute(V, F, **params) -> ndarray`` on the mesh (or its embedding, see ``domain``).
+    metric : str
+        One of :data:`METRICS`.
+    domain : {"original", "embedding", "spectral"}
+        ``embedding``: ``compute`` runs on :func:`embedding_mesh`. ``spectral``: the
+        descriptor is itself spectral and takes the affinity.
+    invariances : tuple of str
+        Among ``translation``, ``rotation``, ``scale``, ``bending`` (approximate).
+    params : dict
+        Default keyword parameters of ``compute`` (stored with every indexed row).
+    """
+
+    name: str
+    summary: str
+    compute: Callable
+    metric: str
+    domain: str
+    invariances: tuple[str, ...]
+    params: dict = field(default_factory=dict)
+
+    @property
+    def uses_affinity(self) -> bool:
+        return self.domain in ("embedding", "spectral")
+
+
+def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0):
+    from geoshape.spectral.evd import evd_descriptor
+
+    return evd_descriptor(V, F, affinity=affinity, seed=seed)
+
+
+def _shd(V, F, *, seed=0):
+    from geoshape.retrieval.shd import shd_descriptor
+
+    return shd_descriptor(V, F, seed=seed)
+
+
+def _lfd(V, F, *, seed=0):
+    from geoshape.retrieval.lfd import lfd_descriptor
+
+    return lfd_descriptor(V, F, seed=seed)
+
+
+_RIGID = ("translation", "rotation", "scale")
+_INTRINSIC = _RIGID + ("bending",)
+
+DESCRIPTORS: dict[str, DescriptorSpec] = {
+    s.name: s
+    for s in [
+        DescriptorSpec("evd", "√ of the top 20 eigenvalues of the Nyström sample affinity (thesis)",
+                       _evd, "chi2", "spectral", _INTRINSIC),
+        DescriptorSpec("ccd", "correspondence cost between 5-D spectral embeddings (thesis)",
+                       ccd_descriptor, "ccd", "spectral", _INTRINSIC),
+        DescriptorSpec("d2", "D2 shape distribution, 64 bins (Osada et al. 2002)",
+                       d2_descriptor, "chi2", "original", _RIGID),
+        DescriptorSpec("shapedna", "first 20 Laplace-Beltrami eigenvalues, unit area (Reuter et al.)",
+                       shapedna_descriptor, "l2", "original", _INTRINSIC),
+        DescriptorSpec("gsv", "singular values of the sampled geodesic distance matrix",
+                       gsv_descriptor, "l1", "original", _INTRINSIC),
+        DescriptorSpec("shd", "spherical harmonics energies, 16 shells x l<=16 (Kazhdan et al.)",
+                       _shd, "l2", "original", _RIGID),
+        DescriptorSpec("lfd", "light field: Zernike + Fourier of 10 dodecahedron silhouettes (Chen et al.)",
+                       _lfd, "lfd", "original", _RIGID),
+        DescriptorSpec("d2_emb", "D2 on the 3D spectral embedding", d2_descriptor, "chi2",
+                       "embedding", _INTRINSIC),
+        DescriptorSpec("shd_emb", "spherical harmonics descriptor on the 3D spectral embedding",
+                       _shd, "l2", "embedding", _INTRINSIC),
+        DescriptorSpec("lfd_emb", "light field descriptor on the 3D spectral embedding",
+                       _lfd, "lfd", "embedding", _INTRINSIC),
+    ]
+}
+
+#: Distances between descriptors, by name.
+METRICS = ("chi2", "l1", "l2", "lfd", "ccd")
+#: Everything ``geoshape retrieval3d --descriptor`` accepts: descriptors + re-ranking schemes.
+RERANKERS = {"evd_ccd": ("evd", "ccd")}
+RETRIEVAL_METHODS = tuple(DESCRIPTORS) + tuple(RERANKERS)
+
+
+def get_descriptor(name: str) -> DescriptorSpec:
+    """The registered descriptor ``name``; raises listing the registered names."""
+    check_choice("descriptor", name, DESCRIPTORS)
+    return DESCRIPTORS[name]
+
+
+def descriptor_params(name: str, affinity: str | None = None, seed: int = 0) -> dict:
+    """The full parameter record of a descriptor computation (stored with indexed rows).
+
+    ``affinity=None`` means the default for descriptors that take one; giving one to a
+    descriptor that takes none raises :class:`InvalidOptionError`.
+    """
+    from geoshape.spectral.affinity import AFFINITY_KINDS
+
+    spec = get_descriptor(name)
+    params = {"descriptor": name, "version": DESCRIPTOR_VERSION, "seed": int(seed)}
+    if spec.uses_affinity:
+        params["affinity"] = check_choice("affinity", affinity or DEFAULT_AFFINITY, AFFINITY_KINDS)
+    elif affinity is not None:
+        alt = f"; use '{name}_emb' for the spectral embedding" if f"{name}_emb" in DESCRIPTORS else ""
+        raise InvalidOptionError(
+            f"descriptor {name!r} works on the original mesh and takes no affinity "
+            f"(got {affinity!r}){alt}"
+        )
+    return params
+
+
+def params_key(params: dict) -> str:
+    """Canonical JSON of a parameter record (sorted keys), for equality and storage."""
+    return json.dumps(params, sort_keys=True, separators=(",", ":"))
+
+
+def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: int = 0,
+                       check: bool = True) -> np.ndarray:
+    """Compute registered descriptor ``name`` of one mesh.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    name : str
+        One of :data:`DESCRIPTORS`.
+    affinity : {"geodesic", "euclidean", "combined"} or None
+        For spectral and embedding descriptors (default geodesic); must be None for the
+        others.
+    seed : int
+
+    Returns
+    -------
+    ndarray
+        Shape depends on the descriptor (see its function).
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> m = trimesh.creation.icosphere(2)
+    >>> compute_descriptor(m.vertices, m.faces, "d2").shape
+    (64,)
+    """
+    params = descriptor_params(name, affinity, seed)
+    spec = DESCRIPTORS[name]
+    if check:
+        V, F = check_mesh(V, F, allow_no_faces=True)
+    if spec.domain == "embedding":
+        X = embedding_mesh(V, F, affinity=params["affinity"], seed=seed)
+        return np.asarray(spec.compute(X, F, seed=seed), dtype=np.float64)
+    if spec.domain == "spectral":
+        return np.asarray(spec.compute(V, F, affinity=params["affinity"], seed=seed), dtype=np.float64)
+    if name == "shapedna":
+        return np.asarray(spec.compute(V, F), dtype=np.float64)
+    return np.asarray(spec.compute(V, F, seed=seed), dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------------------
+# Distances
+# ---------------------------------------------------------------------------------------
+
+
+def _chi2_block(X, Y):
+    X = np.abs(X)
+    Y = np.abs(Y)
+    out = np.zeros((len(X), len(Y)))
+    for i in range(len(X)):  # row by row: O(M d) memory
+        s = X[i] + Y
+        diff = (X[i] - Y) ** 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[i] = 0.5 * np.where(s > 0, diff / np.where(s > 0, s, 1.0), 0.0).sum(axis=1)
+    return out
+
+
+def descriptor_distances(name: str, queries, database) -> np.ndarray:
+    """Distances from each query descriptor to each database descriptor.
+
+    Parameters
+    ----------
+    name : str
+        Registered descriptor (its metric is used).
+    queries : sequence of ndarray or (Q, ...) array
+    database : sequence of ndarray or (M, ...) array
+
+    Returns
+    -------
+    D : (Q, M) float64
+
+    Notes
+    -----
+    χ², L1, L2: O(Q M d), vectorised. LFD: O(Q M f^2 (100 d + 600)). CCD: one eigenvector
+    alignment per pair, O(Q M k^3 p^2) for ``p`` embedding points (greedy reordering).
+    """
+    metric = get_descriptor(name).metric
+    if metric == "ccd":
+        D = np.zeros((len(queries), len(database)))
+        for i, a in enumerate(queries):
+            for j, b in enumerate(database):
+                D[i, j] = ccd_distance(a, b)
+        return D
+    X = np.asarray(queries, dtype=np.float64)
+    Y = np.asarray(database, dtype=np.float64)
+    if metric == "lfd":
+        from geoshape.retrieval.lfd import lfd_distance_matrix
+
+        return lfd_distance_matrix(X, Y)
+    X = X.reshape(len(X), -1)
+    Y = Y.reshape(len(Y), -1)
+    if X.shape[1] != Y.shape[1]:
+        raise InvalidOptionError(f"descriptor lengths differ: {X.shape[1]} vs {Y.shape[1]}")
+    if metric == "chi2":
+        return _chi2_block(X, Y)
+    if metric == "l1":
+        return np.abs(X[:, None, :] - Y[None, :, :]).sum(axis=2) if len(X) * len(Y) * X.shape[1] < 5e7 \
+            else np.array([np.abs(x - Y).sum(axis=1) for x in X])
+    d2 = (X * X).sum(1)[:, None] + (Y * Y).sum(1)[None, :] - 2.0 * X @ Y.T
+    return np.sqrt(np.maximum(d2, 0.0))
+
+
+def descriptor_distance_matrix(name: str, descriptors, *, backend: str | None = "serial",
+                               n_jobs: int | None = None, scheduler=None,
+                               progress: bool = False) -> np.ndarray:
+    """All-pairs dissimilarity matrix of per-shape descriptors.
+
+    Cheap metrics (χ², L1, L2, LFD) run in this process; CCD (one eigenvector alignment per
+    pair) is spread over the parallel runner by :func:`geoshape.parallel.pairwise_matrix`.
+
+    Returns
+    -------
+    D : (N, N) float64, symmetric, zero diagonal.
+    """
+    metric = get_descriptor(name).metric
+    descriptors = list(descriptors)
+    if metric == "ccd" and backend != "serial":
+        from geoshape.parallel import pairwise_matrix
+
+        return pairwise_matrix(_ccd_block, descriptors, vectorized=True, diagonal=0.0,
+                               backend=backend, n_jobs=n_jobs, scheduler=scheduler,
+                               progress=progress, desc="ccd pairs")
+    D = descriptor_distances(name, descriptors, descriptors)
+    D = 0.5 * (D + D.T)
+    np.fill_diagonal(D, 0.0)
+    return D
+
+
+def _ccd_block(list_a, list_b):
+    return descriptor_distances("ccd", list_a, list_b)
+
+
+def _ccd_pairs_task(args):
+    pairs, descs = args
+    return [ccd_distance(descs[i], descs[j]) for i, j in pairs]
+
+
+def rerank(D_first, second_descriptors, *, k: int = 20, backend: str | None = "serial",
+           n_jobs: int | None = None, scheduler=None) -> np.ndarray:
+    """Re-rank each query's top ``k`` (by ``D_first``) by CCD; the rest keeps its order.
+
+    Parameters
+    ----------
+    D_first : (N, N) float
+        First-stage dissimilarities (EVD).
+    second_descriptors : sequence of (p, 5) arrays
+        CCD descriptors of the same N shapes.
+    k : int
+        Shortlist size per query (the query itself excluded).
+
+    Returns
+    -------
+    D : (N, N) float64
+        Row ``i``: the shortlist holds its CCD distances, every other item
+        ``max CCD + 1 + D_first`` (so it ranks after the shortlist, in first-stage order).
+        Not symmetric. The diagonal is 0.
+
+    Notes
+    -----
+    At most ``N k`` CCD evaluations (a pair shortlisted both ways is computed once).
+    """
+    from geoshape.parallel import run_map
+
+    D_first = np.asarray(D_first, dtype=np.float64)
+    n = len(D_first)
+    if not isinstance(k, (int, np.integer)) or k < 1:
+        raise InvalidOptionError(f"re-ranking shortlist size must be a positive integer, got {k!r}")
+    k = min(int(k), n - 1)
+    Dq = D_first.copy()
+    np.fill_diagonal(Dq, np.inf)
+    short = np.argsort(Dq, axis=1, kind="stable")[:, :k]
+    pairs = sorted({(min(i, j), max(i, j)) for i in range(n) for j in short[i].tolist()})
+    descs = list(second_descriptors)
+    n_tasks = max(1, min(len(pairs), 4 * (n_jobs or 2)))
+    chunks = [pairs[s::n_tasks] for s in range(n_tasks)]
+    out = run_map(_ccd_pairs_task, [(c, descs) for c in chunks], backend=backend,
+                  n_jobs=n_jobs, scheduler=scheduler, progress=False, chunksize=1)
+    cost = {}
+    for c, vals in zip(chunks, out, strict=True):
+        cost.update(zip(c, vals, strict=True))
+    top = max(cost.values()) if cost else 0.0
+    D = top + 1.0 + np.where(np.isfinite(Dq), Dq, 0.0)
+    for i in range(n):
+        for j in short[i].tolist():
+            D[i, j] = cost[(min(i, j), max(i, j))]
+    np.fill_diagonal(D, 0.0)
+    return D

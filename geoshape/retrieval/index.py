@@ -1,0 +1,433 @@
+"""A persistent shape index: descriptors of mesh files in one SQLite file.
+
+Each row holds one descriptor of one file: the absolute path, the SHA-256 of the file's
+bytes, the descriptor name, its full parameter record (canonical JSON, see
+:func:`geoshape.retrieval.descriptors.descriptor_params`), the array (float64 bytes and
+shape) and the compute time.
+
+Robustness
+----------
+- **Resumable.** :meth:`ShapeIndex.add` computes descriptors in batches on the parallel
+  runner and commits each batch in one transaction. A run that is killed loses at most the
+  batch in flight; re-running skips every file whose (path, descriptor, parameters) row
+  exists with the same content hash, so nothing is computed twice and nothing duplicated
+  (the triple is the primary key).
+- **Consistent readers.** The database is in WAL mode: readers see the last committed
+  batch, never half of one, and are not blocked by a writer.
+- **Bad files** are reported by name and skipped; the batch goes on.
+
+Queries load the stored descriptors of one (descriptor, parameters) set into memory once
+(re-loaded when the index changes) and rank them with the descriptor's metric: a top-10
+query over 10,000 EVD rows is a vectorised χ² plus a partial sort.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sqlite3
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from geoshape.errors import DatasetError, InvalidOptionError
+
+__all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs",
+           "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION"]
+
+SCHEMA_VERSION = 1
+#: descriptors stored by ``index add`` when none is named: EVD to rank, CCD to re-rank
+DEFAULT_INDEX_DESCRIPTORS = ("evd", "ccd")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS entries (
+    path TEXT NOT NULL,
+    descriptor TEXT NOT NULL,
+    params TEXT NOT NULL,
+    sha256 TEXT NOT NULL,
+    shape TEXT NOT NULL,
+    data BLOB NOT NULL,
+    seconds REAL,
+    added REAL NOT NULL,
+    PRIMARY KEY (path, descriptor, params)
+);
+CREATE INDEX IF NOT EXISTS entries_by_descriptor ON entries (descriptor, params);
+"""
+
+
+def file_sha256(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes (streamed, O(size))."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def expand_mesh_inputs(inputs) -> list[Path]:
+    """Mesh files named directly, plus the mesh files found (recursively) in folders.
+
+    Order: inputs in the order given, folder contents sorted; duplicates removed. A named
+    file is kept whatever its extension (so an unsupported one is reported, not ignored).
+
+    Raises
+    ------
+    DatasetError
+        An input that does not exist.
+    """
+    from geoshape.io.mesh_io import is_mesh_file
+
+    out: list[Path] = []
+    seen: set[Path] = set()
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.rglob("*") if q.is_file() and is_mesh_file(q))
+        elif p.is_file():
+            found = [p]
+        else:
+            raise DatasetError(f"{p}: no such file or folder")
+        for q in found:
+            r = q.resolve()
+            if r not in seen:
+                seen.add(r)
+                out.append(r)
+    return out
+
+
+@dataclass
+class AddReport:
+    """What :meth:`ShapeIndex.add` did: rows added, skipped as unchanged, failures."""
+
+    added: int = 0
+    skipped: int = 0
+    failed: list[tuple[str, str]] = field(default_factory=list)  # (path, message)
+    batches: int = 0
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class Hit:
+    """One query result."""
+
+    rank: int
+    path: str
+    distance: float
+    first_distance: float | None = None  # before re-ranking
+
+
+class ShapeIndex:
+    """Descriptors of mesh files stored in SQLite (WAL); add, skip unchanged, query.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The database file (created if missing).
+    timeout : float
+        Seconds to wait for a lock held by another writer.
+
+    Examples
+    --------
+    >>> idx = ShapeIndex("shapes.db")  # doctest: +SKIP
+    >>> idx.add(["meshes/"], descriptors=["evd"])  # doctest: +SKIP
+    >>> idx.query_mesh(V, F, "evd", top=10)  # doctest: +SKIP
+    """
+
+    def __init__(self, path: str | os.PathLike, *, timeout: float = 60.0):
+        self.path = Path(path)
+        if self.path.parent and not self.path.parent.exists():
+            raise DatasetError(f"{self.path}: folder {self.path.parent} does not exist")
+        try:
+            self._conn = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None)
+            self._conn.execute("PRAGMA journal_mode=WAL")
+            self._conn.execute("PRAGMA synchronous=NORMAL")
+            self._conn.executescript(_SCHEMA)
+            self._conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)",
+                               (str(SCHEMA_VERSION),))
+        except sqlite3.DatabaseError as exc:
+            raise DatasetError(f"{self.path}: not a geoshape index ({exc})") from None
+        self._cache: dict = {}
+
+    # -- context manager -----------------------------------------------------------------
+    def close(self) -> None:
+        self._conn.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # -- contents ------------------------------------------------------------------------
+    def count(self, descriptor: str | None = None) -> int:
+        """Number of stored rows (of one descriptor, if given)."""
+        if descriptor is None:
+            return int(self._conn.execute("SELECT COUNT(*) FROM entries").fetchone()[0])
+        return int(self._conn.execute("SELECT COUNT(*) FROM entries WHERE descriptor = ?",
+                                      (descriptor,)).fetchone()[0])
+
+    def summary(self) -> list[dict]:
+        """One dict per stored (descriptor, params): ``descriptor``, ``params``, ``rows``."""
+        rows = self._conn.execute(
+            "SELECT descriptor, params, COUNT(*) FROM entries GROUP BY descriptor, params "
+            "ORDER BY descriptor").fetchall()
+        return [{"descriptor": d, "params": json.loads(p), "rows": int(c)} for d, p, c in rows]
+
+    def _existing(self, descriptor: str, pkey: str) -> dict[str, str]:
+        rows = self._conn.execute("SELECT path, sha256 FROM entries WHERE descriptor = ? AND params = ?",
+                                  (descriptor, pkey)).fetchall()
+        return dict(rows)
+
+    def insert_rows(self, rows) -> None:
+        """Insert (or replace) rows in one transaction.
+
+        Parameters
+        ----------
+        rows : iterable of (path, descriptor, params_key, sha256, array, seconds)
+        """
+        now = time.time()
+        packed = [(str(p), d, pk, sha, json.dumps(list(np.shape(a))),
+                   np.ascontiguousarray(a, dtype=np.float64).tobytes(), s, now)
+                  for p, d, pk, sha, a, s in rows]
+        if not packed:
+            return
+        self._conn.execute("BEGIN IMMEDIATE")
+        try:
+            self._conn.executemany(
+                "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
+                "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
+        except BaseException:
+            self._conn.execute("ROLLBACK")
+            raise
+        self._conn.execute("COMMIT")
+
+    # -- adding --------------------------------------------------------------------------
+    def add(self, inputs, descriptors=DEFAULT_INDEX_DESCRIPTORS, *, affinity: str | None = None,
+            seed: int = 0, backend: str | None = None, n_jobs: int | None = None,
+            scheduler=None, batch_size: int | None = None, progress=None) -> AddReport:
+        """Describe mesh files and store the descriptors, skipping unchanged files.
+
+        Parameters
+        ----------
+        inputs : sequence of path
+            Mesh files and/or folders (searched recursively for mesh files).
+        descriptors : sequence of str
+            Registered descriptor names.
+        affinity : str or None
+            For the spectral/embedding descriptors (default geodesic); ignored by the others.
+        seed : int
+        backend, n_jobs, scheduler
+            As :func:`geoshape.parallel.run_map` (local processes by default, Dask with a
+            scheduler address). One Dask client is opened for the whole run.
+        batch_size : int or None
+            Files per committed batch; default ``4 x workers`` (at least 4).
+        progress : callable, optional
+            ``progress(done_files, total_files)`` after each batch.
+
+        Returns
+        -------
+        AddReport
+
+        Notes
+        -----
+        Each file is read and hashed once in this process (O(size)), then described on the
+        runner; one transaction per batch.
+        """
+        from geoshape.parallel import _dask_client, _resolve_backend, default_n_jobs
+        from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
+        from geoshape.retrieval.meshes import describe_file
+
+        t0 = time.perf_counter()
+        names = list(dict.fromkeys(descriptors))
+        if not names:
+            raise InvalidOptionError("no descriptor named")
+        pkeys = {}
+        for nm in names:
+            spec = get_descriptor(nm)
+            pkeys[nm] = params_key(descriptor_params(nm, affinity if spec.uses_affinity else None, seed))
+        backend = _resolve_backend(backend, scheduler)
+        workers = n_jobs or default_n_jobs()
+        if batch_size is None:
+            batch_size = max(4, 4 * workers)
+        if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+            raise InvalidOptionError(f"batch_size must be a positive integer, got {batch_size!r}")
+        files = expand_mesh_inputs(inputs)
+        report = AddReport()
+        existing = {nm: self._existing(nm, pkeys[nm]) for nm in names}
+        todo = []  # (path, sha, [names to compute])
+        for f in files:
+            try:
+                sha = file_sha256(f)
+            except OSError as exc:
+                report.failed.append((str(f), f"{f}: cannot read: {exc}"))
+                continue
+            need = [nm for nm in names if existing[nm].get(str(f)) != sha]
+            report.skipped += len(names) - len(need)
+            if need:
+                todo.append((f, sha, need))
+        client, owned = (None, False)
+        if backend == "dask":
+            client, owned = _dask_client(scheduler, workers)
+        try:
+            for start in range(0, len(todo), batch_size):
+                batch = todo[start : start + batch_size]
+                tasks = [(f, sha, nm) for f, sha, need in batch for nm in need]
+                items = [(str(f), nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
+                         for f, _, nm in tasks]
+                from geoshape.parallel import run_map
+
+                results = run_map(describe_file, items, backend=backend, n_jobs=n_jobs,
+                                  scheduler=client, progress=False, on_error="return")
+                rows, bad = [], {}
+                for (f, sha, nm), res in zip(tasks, results, strict=True):
+                    if isinstance(res, BaseException):
+                        bad.setdefault(str(f), str(res) if str(f) in str(res) else f"{f}: {res}")
+                    else:
+                        rows.append((f, nm, pkeys[nm], sha, res[0], res[1]))
+                # A file that failed one descriptor is stored for none: all or nothing per file.
+                rows = [r for r in rows if str(r[0]) not in bad]
+                self.insert_rows(rows)
+                report.added += len(rows)
+                report.failed.extend(bad.items())
+                report.batches += 1
+                if progress is not None:
+                    progress(min(start + batch_size, len(todo)), len(todo))
+        finally:
+            if owned and client is not None:
+                cluster = getattr(client, "cluster", None)
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+        self._cache.clear()
+        report.seconds = time.perf_counter() - t0
+        return report
+
+    # -- querying ------------------------------------------------------------------------
+    def _state(self) -> tuple:
+        return tuple(self._conn.execute("SELECT COUNT(*), MAX(rowid), MAX(added) FROM entries").fetchone())
+
+    def load(self, descriptor: str, params: dict) -> tuple[list[str], np.ndarray]:
+        """Stored paths and stacked descriptors of one (descriptor, parameters) set.
+
+        Returns
+        -------
+        paths : list of str
+        X : (M, *shape) float64
+            Cached until the index changes.
+
+        Raises
+        ------
+        DatasetError
+            Nothing stored for this descriptor and these parameters.
+        """
+        from geoshape.retrieval.descriptors import params_key
+
+        pkey = params_key(params)
+        state = self._state()
+        hit = self._cache.get(pkey)
+        if hit is not None and hit[0] == state:
+            return hit[1], hit[2]
+        rows = self._conn.execute("SELECT path, shape, data FROM entries WHERE descriptor = ? "
+                                  "AND params = ? ORDER BY path", (descriptor, pkey)).fetchall()
+        if not rows:
+            stored = ", ".join(f"{s['descriptor']} {json.dumps(s['params'])}" for s in self.summary())
+            raise DatasetError(f"{self.path}: no {descriptor!r} descriptors with parameters "
+                               f"{pkey} (stored: {stored or 'nothing'})")
+        shapes = {r[1] for r in rows}
+        paths = [r[0] for r in rows]
+        if len(shapes) == 1:
+            shape = tuple(json.loads(rows[0][1]))
+            X = np.frombuffer(b"".join(r[2] for r in rows), dtype=np.float64).reshape(len(rows), *shape)
+        else:  # ragged (e.g. CCD of meshes with fewer points than requested): object array
+            X = np.empty(len(rows), dtype=object)
+            for k, r in enumerate(rows):
+                X[k] = np.frombuffer(r[2], dtype=np.float64).reshape(json.loads(r[1]))
+        self._cache[pkey] = (state, paths, X)
+        return paths, X
+
+    def query_descriptor(self, q, descriptor: str, *, top: int = 10, affinity: str | None = None,
+                         seed: int = 0, rerank: str | None = None, rerank_q=None,
+                         rerank_k: int | None = None) -> list[Hit]:
+        """Rank the stored shapes against a query descriptor already computed.
+
+        Parameters
+        ----------
+        q : ndarray
+            The query's descriptor ``descriptor``.
+        descriptor : str
+        top : int
+            Number of hits returned.
+        affinity, seed
+            Select the stored parameter set (as when adding).
+        rerank : str or None
+            A second descriptor (``"ccd"``) re-ranking the first ``rerank_k`` hits; its
+            query descriptor is ``rerank_q``.
+        rerank_k : int or None
+            Shortlist size; default ``max(top, 20)``.
+
+        Returns
+        -------
+        list of :class:`Hit`, best first.
+
+        Notes
+        -----
+        O(M d) for M stored descriptors of size d (χ²/L1/L2), plus O(M) for the partial
+        sort; re-ranking adds ``rerank_k`` CCD evaluations.
+        """
+        from geoshape.retrieval.descriptors import descriptor_distances, descriptor_params, get_descriptor
+
+        if not isinstance(top, (int, np.integer)) or top < 1:
+            raise InvalidOptionError(f"top must be a positive integer, got {top!r}")
+        spec = get_descriptor(descriptor)
+        params = descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed)
+        paths, X = self.load(descriptor, params)
+        d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
+        m = len(paths)
+        k = min(m, max(top, rerank_k or 20) if rerank else top)
+        cand = np.argpartition(d, k - 1)[:k] if k < m else np.arange(m)
+        cand = cand[np.lexsort((cand, d[cand]))]
+        if not rerank:
+            return [Hit(r + 1, paths[i], float(d[i])) for r, i in enumerate(cand[:top])]
+        rspec = get_descriptor(rerank)
+        rparams = descriptor_params(rerank, affinity if rspec.uses_affinity else None, seed)
+        rpaths, RX = self.load(rerank, rparams)
+        where = {p: i for i, p in enumerate(rpaths)}
+        keep = [i for i in cand if paths[i] in where]
+        if rerank_q is None:
+            raise InvalidOptionError(f"re-ranking by {rerank!r} needs the query's {rerank} descriptor")
+        rd = descriptor_distances(rerank, [rerank_q], [RX[where[paths[i]]] for i in keep])[0]
+        order = np.lexsort((np.arange(len(keep)), rd))
+        return [Hit(r + 1, paths[keep[o]], float(rd[o]), float(d[keep[o]]))
+                for r, o in enumerate(order[:top])]
+
+    def query_mesh(self, V, F, descriptor: str = "evd", *, top: int = 10,
+                   affinity: str | None = None, seed: int = 0, rerank: str | None = None,
+                   rerank_k: int | None = None) -> tuple[list[Hit], dict]:
+        """Describe a mesh and rank the stored shapes against it.
+
+        Returns
+        -------
+        hits : list of :class:`Hit`
+        timing : dict
+            ``seconds_descriptor`` (query descriptors) and ``seconds_search``.
+        """
+        from geoshape.retrieval.descriptors import compute_descriptor, get_descriptor
+
+        t0 = time.perf_counter()
+        spec = get_descriptor(descriptor)
+        q = compute_descriptor(V, F, descriptor, affinity=affinity if spec.uses_affinity else None,
+                               seed=seed)
+        rq = None
+        if rerank:
+            rspec = get_descriptor(rerank)
+            rq = compute_descriptor(V, F, rerank, affinity=affinity if rspec.uses_affinity else None,
+                                    seed=seed)
+        t1 = time.perf_counter()
+        hits = self.query_descriptor(q, descriptor, top=top, affinity=affinity, seed=seed,
+                                     rerank=rerank, rerank_q=rq, rerank_k=rerank_k)
+        t2 = time.perf_counter()
+        return hits, {"seconds_descriptor": t1 - t0, "seconds_search": t2 - t1}
