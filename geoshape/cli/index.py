@@ -106,7 +106,8 @@ def run_add(args) -> int:
                       batch_size=args.batch_size, progress=progress if args.verbose else None)
         total = idx.count()
     for path, msg in rep.failed:
-        print(f"geoshape index add: skipped {path}: {msg}", file=sys.stderr)
+        print(f"geoshape index add: skipped {msg if path in msg else f'{path}: {msg}'}",
+              file=sys.stderr)
     summary = {"db": str(args.db), "descriptors": names, "added": rep.added,
                "skipped_unchanged": rep.skipped, "failed": [p for p, _ in rep.failed],
                "batches": rep.batches, "rows_in_index": total, "seconds": rep.seconds}
@@ -128,8 +129,8 @@ def run_query(args) -> int:
     get_descriptor(args.descriptor)
     if args.rerank:
         get_descriptor(args.rerank)
-    V, F = load_mesh(args.mesh)
     with _open(args.db, must_exist=True) as idx:
+        V, F = load_mesh(args.mesh)
         hits, timing = idx.query_mesh(V, F, args.descriptor, top=args.top, affinity=args.affinity,
                                       seed=args.seed, rerank=args.rerank, rerank_k=args.rerank_k)
     if args.plot_strip:

@@ -519,12 +519,18 @@ def descriptor_distance_matrix(name: str, descriptors, *, backend: str | None = 
 
 
 def _ccd_block(list_a, list_b):
-    return descriptor_distances("ccd", list_a, list_b)
+    from geoshape.retrieval.meshes import single_thread_blas
+
+    with single_thread_blas():
+        return descriptor_distances("ccd", list_a, list_b)
 
 
 def _ccd_pairs_task(args):
+    from geoshape.retrieval.meshes import single_thread_blas
+
     pairs, descs = args
-    return [ccd_distance(descs[i], descs[j]) for i, j in pairs]
+    with single_thread_blas():
+        return [ccd_distance(descs[i], descs[j]) for i, j in pairs]
 
 
 def rerank(D_first, second_descriptors, *, k: int = 20, backend: str | None = "serial",

@@ -416,16 +416,18 @@ class ShapeIndex:
             ``seconds_descriptor`` (query descriptors) and ``seconds_search``.
         """
         from geoshape.retrieval.descriptors import compute_descriptor, get_descriptor
+        from geoshape.retrieval.meshes import single_thread_blas
 
         t0 = time.perf_counter()
         spec = get_descriptor(descriptor)
-        q = compute_descriptor(V, F, descriptor, affinity=affinity if spec.uses_affinity else None,
-                               seed=seed)
-        rq = None
-        if rerank:
-            rspec = get_descriptor(rerank)
-            rq = compute_descriptor(V, F, rerank, affinity=affinity if rspec.uses_affinity else None,
-                                    seed=seed)
+        with single_thread_blas():  # small dense eigenproblems: threads only spin
+            q = compute_descriptor(V, F, descriptor, seed=seed,
+                                   affinity=affinity if spec.uses_affinity else None)
+            rq = None
+            if rerank:
+                rspec = get_descriptor(rerank)
+                rq = compute_descriptor(V, F, rerank, seed=seed,
+                                        affinity=affinity if rspec.uses_affinity else None)
         t1 = time.perf_counter()
         hits = self.query_descriptor(q, descriptor, top=top, affinity=affinity, seed=seed,
                                      rerank=rerank, rerank_q=rq, rerank_k=rerank_k)
