@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import icosphere
 
 from geoshape.errors import InvalidOptionError
 from geoshape.retrieval.descriptors import (
@@ -18,7 +19,6 @@ from geoshape.retrieval.descriptors import (
     descriptor_params,
     rerank,
 )
-from conftest import icosphere
 
 
 def _rotation(seed: int) -> np.ndarray:

@@ -24,6 +24,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("geodesics", "geoshape.bench.geodesics"),
     ("spectral", "geoshape.bench.spectral"),
     ("correspondence", "geoshape.bench.correspondence"),
+    ("retrieval3d", "geoshape.bench.retrieval3d"),
 ]
 
 
