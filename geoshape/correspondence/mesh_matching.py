@@ -54,6 +54,7 @@ CORRESPONDENCE_METHODS = (
 )
 DEFAULT_METHOD = "geoshape"
 MIN_VERTICES = 10
+_DEBUG_KEEP_MAPS = False
 
 
 @dataclass
@@ -217,9 +218,10 @@ def _jz(m1, m2, *, k=5, reorder="exhaustive", icp_iterations=8, n_controls=300, 
     return Correspondence(p2p, cost, "jz", best, alts, timings, details)
 
 
-def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=6, icp_iterations=6, n_controls=200,
-              lb_k=60, screen_k=20, screen_samples=600, zoomout_start=6, zoomout_step=2,
-              zoomout_samples=1500, n_samples=None, seed=0):
+def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=12, n_refine=2, icp_iterations=6,
+              n_controls=200, lb_k=60, screen_k=16,
+              screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
+              n_samples=None, seed=0):
     from geoshape.correspondence.zoomout import zoomout
 
     timings = {}
@@ -231,32 +233,48 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=6, icp_iterations=6, 
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
     c1, c2 = m1.samples(screen_samples, seed), m2.samples(screen_samples, seed)
     timings["laplacian"] = time.perf_counter() - t
-    # 1. screen every candidate alignment with a coarse ZoomOut on few samples
+    # 1. screen every candidate alignment by a coarse ZoomOut on few samples: the thesis'
+    #    L2 reordering cost alone often ranks the right signed order only 5th-15th
     t = time.perf_counter()
     candidates = []
     for a in alignments:
         Bw, _ = nonrigid_icp(A, a.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed)
-        init = nearest(Bw, A)[1]
-        coarse, energy = zoomout(b1, b2, init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
+        init = nearest(Bw, A[c1])[1]
+        full_init = np.zeros(m1.n, np.int64)
+        full_init[c1] = init
+        coarse, energy = zoomout(b1, b2, full_init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
                                  step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
                                  final_on_samples=True)
         orient = orientation_score(m1.V, m1.F, m2.V, m2.F, coarse)
         candidates.append({"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": energy,
                            "orientation": orient, "p2p": coarse, "alignment": a})
     timings["screening"] = time.perf_counter() - t
-    # prefer orientation-preserving maps, then the most isometric functional map
-    chosen = min(candidates, key=lambda c: (c["orientation"] <= 0, c["zoomout_energy"]))
-    # 2. refine the chosen one to the full basis on more samples, then every vertex
+    # 2. refine the most isometric candidate and the most isometric one of the opposite
+    #    coarse orientation (its likely mirror image): on coarse maps the orientation
+    #    signal is weak and can point the wrong way, on refined maps it is decisive
     t = time.perf_counter()
+    ranked = sorted(candidates, key=lambda c: c["zoomout_energy"])
+    best = ranked[0]
+    mirror = [c for c in ranked if np.sign(c["orientation"]) != np.sign(best["orientation"])]
+    to_refine = [best] + mirror[:1] + [c for c in ranked[1:] if c is not (mirror[:1] or [None])[0]][
+        : max(0, n_refine - 2)]
     s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
-    p2p, energy = zoomout(b1, b2, chosen["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                          samples1=s1, samples2=s2, return_energy=True)
+    refined = []
+    for c in to_refine:
+        p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                              samples1=s1, samples2=s2, return_energy=True)
+        orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+        c.update(refined_energy=energy, refined_orientation=orient)
+        refined.append((orient <= 0, energy, p2p, c))
     timings["refinement"] = time.perf_counter() - t
-    orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
-    alts = [{key: c[key] for key in ("perm", "signs", "cost", "zoomout_energy", "orientation")}
-            for c in candidates]
+    _, energy, p2p, chosen = min(refined, key=lambda r: (r[0], r[1]))
+    keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
+    alts = [{key: c[key] for key in keys if key in c} for c in ranked]
+    if _DEBUG_KEEP_MAPS:
+        for a, c in zip(alts, ranked, strict=True):
+            a["p2p"] = c["p2p"]
     return Correspondence(p2p, energy, "geoshape", chosen["alignment"], alts, timings,
-                          {"orientation": orient})
+                          {"orientation": chosen["refined_orientation"]})
 
 
 def _shapiro_brady(m1, m2, *, scaling, name, k=5, n_samples=None, seed=0):

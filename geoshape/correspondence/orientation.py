@@ -33,6 +33,48 @@ def vertex_normals(V, F) -> np.ndarray:
     return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
 
 
+def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, radius: float = 0.1,
+                            seed: int = 0) -> float:
+    """Orientation agreement of mapped *patches*, robust to a noisy map.
+
+    For ``n_samples`` seeded vertices ``i`` of mesh 1, two further vertices ``j, l`` at
+    Euclidean distance ``radius … 2 radius`` (× √area of mesh 1) span a small oriented
+    triangle with the surface normal at ``i``: ``s1 = sign det[x_j − x_i, x_l − x_i, n_i]``.
+    The same triple mapped through ``p2p_12`` gives ``s2`` on mesh 2 (normal at the image of
+    ``i``). Returns the mean of ``s1 s2`` over triples whose mapped triangle is not
+    degenerate: near +1 for an orientation-preserving map, near −1 for a mirror map. At this
+    scale a map that is off by a few percent of √area still votes correctly, unlike the
+    per-triangle :func:`orientation_score`. O(n_samples log n) with a KD-tree.
+    """
+    from scipy.spatial import cKDTree
+
+    p2p = np.asarray(p2p_12)
+    rng = np.random.default_rng(seed)
+    area1 = 0.5 * np.linalg.norm(_face_normals(V1, F1), axis=1).sum()
+    r = radius * np.sqrt(area1)
+    N1 = vertex_normals(V1, F1) * outward_sign(V1, F1)
+    N2 = vertex_normals(V2, F2) * outward_sign(V2, F2)
+    tree = cKDTree(V1)
+    centers = rng.choice(len(V1), size=min(n_samples, len(V1)), replace=False)
+    outer = tree.query_ball_point(V1[centers], 2 * r)
+    votes = []
+    for i, nbrs in zip(centers, outer, strict=True):
+        nbrs = np.asarray(nbrs)
+        if len(nbrs) < 2:
+            continue
+        d = np.linalg.norm(V1[nbrs] - V1[i], axis=1)
+        ring = nbrs[d >= r]
+        if len(ring) < 2:
+            continue
+        j, l = rng.choice(ring, size=2, replace=False)
+        s1 = np.dot(np.cross(V1[j] - V1[i], V1[l] - V1[i]), N1[i])
+        a, b, c = V2[p2p[i]], V2[p2p[j]], V2[p2p[l]]
+        s2 = np.dot(np.cross(b - a, c - a), N2[p2p[i]])
+        if s1 != 0 and s2 != 0:
+            votes.append(np.sign(s1) * np.sign(s2))
+    return float(np.mean(votes)) if votes else 0.0
+
+
 def orientation_score(V1, F1, V2, F2, p2p_12) -> float:
     """Mean orientation agreement in [−1, 1] of mesh-1 triangles mapped onto mesh 2.
 

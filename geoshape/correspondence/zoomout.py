@@ -26,33 +26,20 @@ from geoshape.spectral.laplacian import LaplacianBasis
 
 
 def functional_map_from_p2p(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray,
-                            k1: int, k2: int, rows1: np.ndarray | None = None) -> np.ndarray:
+                            k1: int, k2: int, rows1: np.ndarray | None = None, qr=None) -> np.ndarray:
     """``C_21 (k1, k2)``: functions on mesh 2 pulled back to mesh 1 through ``p2p_12``.
 
     With ``rows1`` (a subset of mesh-1 vertices, ``p2p_12`` given on that subset), the
     map is the least-squares fit ``Φ1[rows1] C ≈ Φ2[p2p_12]``; otherwise the mass-weighted
-    projection ``Φ1ᵀ M1 Φ2[p2p_12]``.
+    projection ``Φ1ᵀ M1 Φ2[p2p_12]``. ``qr`` may pass a precomputed ``np.linalg.qr(Φ1[rows1])``.
     """
     if rows1 is None:
         return basis1.evecs[:, :k1].T @ (basis1.mass[:, None] * basis2.evecs[p2p_12, :k2])
-    Q, R = _subset_qr(basis1, rows1)
+    Q, R = np.linalg.qr(basis1.evecs[rows1]) if qr is None else qr
     # least squares with the first k1 columns: the QR of a column prefix is a prefix of the QR
     from scipy.linalg import solve_triangular
 
     return solve_triangular(R[:k1, :k1], Q[:, :k1].T @ basis2.evecs[p2p_12, :k2])
-
-
-_QR_CACHE: dict = {}
-
-
-def _subset_qr(basis: LaplacianBasis, rows: np.ndarray):
-    """Thin QR of ``Φ[rows]`` (cached for the last few bases/subsets), O(s K^2) once."""
-    key = (id(basis), rows.tobytes())
-    if key not in _QR_CACHE:
-        if len(_QR_CACHE) > 8:
-            _QR_CACHE.clear()
-        _QR_CACHE[key] = np.linalg.qr(basis.evecs[rows])
-    return _QR_CACHE[key]
 
 
 def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
@@ -107,11 +94,12 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     ks = list(range(k_start, k_end + 1, step))
     if ks[-1] != k_end:
         ks.append(k_end)
+    qr = None if rows1 is None else np.linalg.qr(basis1.evecs[rows1, :k_end])
     C = None
     for k in ks:
-        C = functional_map_from_p2p(basis1, basis2, sub, k, k, rows1)
+        C = functional_map_from_p2p(basis1, basis2, sub, k, k, rows1, qr)
         sub = p2p_from_functional_map(basis1, basis2, C, rows1, rows2)
-    C = functional_map_from_p2p(basis1, basis2, sub, k_end, k_end, rows1)
+    C = functional_map_from_p2p(basis1, basis2, sub, k_end, k_end, rows1, qr)
     full = p2p_from_functional_map(basis1, basis2, C, None, rows2 if final_on_samples else None)
     if not return_energy:
         return full
