@@ -1,7 +1,7 @@
 """Proximity-aided matching with anchor pairs (thesis §3.1.3 in 2D, §4.3 step 5 in 3D).
 
 Anchors: the pair of smallest embedding distance, then pairs penalised for lying near
-the previous anchors (minus half the mean normalised geodesic distance to them). Each
+the previous anchors (minus half the normalised geodesic distance to the nearest one). Each
 vertex ``i`` of mesh 1 is then matched to
 
     argmin_j  z(i, j) + Σ_l α_l |g1(i, a1_l) − g2(j, a2_l)|
@@ -58,8 +58,10 @@ def proximity_anchors(A, B, geodesic1: Callable[[int], np.ndarray], geodesic2: C
         g2 = g2 / (g2[np.isfinite(g2)].max() or 1.0)
         G1.append(g1)
         G2.append(g2)
-        # penalise closeness to every anchor so far: -½ (g1(i) + g2(j)), averaged over anchors
-        penalty = 0.5 * (np.mean(G1, axis=0)[:, None] + np.mean(G2, axis=0)[cand])
+        # penalise closeness to the anchors so far: -½ (g1(i) + g2(j)) with g the distance to
+        # the *nearest* previous anchor (for the second anchor this is the thesis' rule; the
+        # minimum keeps later anchors away from every earlier one, where a sum can tie)
+        penalty = 0.5 * (np.min(G1, axis=0)[:, None] + np.min(G2, axis=0)[cand])
     return anchors, np.asarray(G1), np.asarray(G2)
 
 

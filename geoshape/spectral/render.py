@@ -79,6 +79,31 @@ def sidecar_path(path: str | os.PathLike) -> Path:
     return path.with_name(stem + ".npy")
 
 
+def draw_mesh(ax, V: np.ndarray, F: np.ndarray, facecolors: np.ndarray, *, elev: float = 20.0,
+              azim: float = -60.0) -> None:
+    """Draw a mesh with per-face RGBA colours on a 3-D matplotlib axis, Lambert-shaded
+    along the view direction (painter's algorithm, O(m log m))."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    tris = V[F]
+    nrm = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    e, a = np.radians(elev), np.radians(azim)
+    view = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    shade = 0.35 + 0.65 * np.abs(nrm @ view)
+    facecolors = np.array(facecolors, dtype=np.float64, copy=True)
+    facecolors[:, :3] *= shade[:, None]
+    ax.add_collection3d(Poly3DCollection(tris, facecolors=facecolors, linewidths=0))
+    center = (V.max(axis=0) + V.min(axis=0)) / 2
+    r = float(np.max(V.max(axis=0) - V.min(axis=0))) / 2 or 1.0
+    ax.set_xlim(center[0] - r, center[0] + r)
+    ax.set_ylim(center[1] - r, center[1] + r)
+    ax.set_zlim(center[2] - r, center[2] + r)
+    ax.set_box_aspect((1, 1, 1), zoom=1.5)
+    ax.view_init(elev=elev, azim=azim)
+    ax.set_axis_off()
+
+
 def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "coolwarm",
                     elev: float = 20.0, azim: float = -60.0, size: int = 600,
                     title: str | None = None) -> Path:
@@ -113,12 +138,10 @@ def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     from geoshape.io.atomic import atomic_path
 
     V, F = check_mesh(V, F)
-    tris = V[F]
     if values is not None:
         values = np.asarray(values, dtype=np.float64).ravel()
         if values.shape != (len(V),):
@@ -130,27 +153,11 @@ def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "
         facecolors = matplotlib.colormaps[cmap](norm(fv))
     else:
         facecolors = np.tile([0.75, 0.75, 0.78, 1.0], (len(F), 1))
-    # simple Lambert shading along the view direction
-    nrm = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
-    e, a = np.radians(elev), np.radians(azim)
-    view = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    shade = 0.35 + 0.65 * np.abs(nrm @ view)
-    facecolors = facecolors.copy()
-    facecolors[:, :3] *= shade[:, None]
     fig = plt.figure(figsize=(size / 100, size / 100), dpi=100)
     try:
         ax = fig.add_subplot(projection="3d")
-        ax.add_collection3d(Poly3DCollection(tris, facecolors=facecolors, linewidths=0))
-        center = (V.max(axis=0) + V.min(axis=0)) / 2
-        r = float(np.max(V.max(axis=0) - V.min(axis=0))) / 2 or 1.0
-        ax.set_xlim(center[0] - r, center[0] + r)
-        ax.set_ylim(center[1] - r, center[1] + r)
-        ax.set_zlim(center[2] - r, center[2] + r)
-        ax.set_box_aspect((1, 1, 1), zoom=1.5)
+        draw_mesh(ax, V, F, facecolors, elev=elev, azim=azim)
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95 if title else 1)
-        ax.view_init(elev=elev, azim=azim)
-        ax.set_axis_off()
         if title:
             ax.set_title(title)
         path = Path(path)

