@@ -17,7 +17,7 @@ from geoshape.correspondence.tps import fit_tps
 from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def figure(cls="quadruped"):
     from datasets_gen.articulated3d import generate_figure
 
@@ -139,8 +139,8 @@ def test_cli_correspond_writes_the_map_format(tmp_path, capsys):
     V1, V2, F = figure()
     save_mesh(tmp_path / "a.off", V1, F)
     save_mesh(tmp_path / "b.ply", V2, F)
-    code = main(["correspond", str(tmp_path / "a.off"), str(tmp_path / "b.ply"), "-o", str(tmp_path / "m.txt"),
-                 "--method", "jz", "--ply", str(tmp_path / "c.ply"), "--json"])
+    code = main(["correspond", str(tmp_path / "a.off"), str(tmp_path / "b.ply"),
+                 "-o", str(tmp_path / "m.txt"), "--method", "jz", "--ply", str(tmp_path / "c.ply"), "--json"])
     assert code == 0
     p2p = read_map(tmp_path / "m.txt")
     assert p2p.shape == (len(V1),) and p2p.min() >= 0 and p2p.max() < len(V2)
