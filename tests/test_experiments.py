@@ -49,7 +49,8 @@ def test_scaling(tmp_path):
 
 def test_gaussian_width(tmp_path):
     rows, _ = _run(tmp_path, "gaussian-width", "--tosca", "none", "--generated", "snake",
-                   "--base-vertices", "120", "--spikes", "5,10", "--rhos", "0.5,2", "--landmarks", "20")
+                   "--base-vertices", "120", "--spikes", "5,10", "--rhos", "0.5,2", "--landmarks", "20",
+                   "--repeats", "1")
     assert len(rows) == 4
     _finite(rows, "mean_error", "rho", "on_spikes", "seconds")
     assert {int(r["spikes"]) for r in rows} == {5, 10}
