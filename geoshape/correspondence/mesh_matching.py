@@ -218,7 +218,29 @@ def _jz(m1, m2, *, k=5, reorder="exhaustive", icp_iterations=8, n_controls=300, 
     return Correspondence(p2p, cost, "jz", best, alts, timings, details)
 
 
-def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=12, n_refine=2, icp_iterations=6,
+def _sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
+    """Every other sign vector of the best alignment's column order (2^k − 1 − already kept).
+
+    A bilateral symmetry shows up as one or more eigenvectors whose signs swap left and
+    right; the cheapest candidates by the L2 cost often all share those signs, so the
+    mirror map would never be tried. O(2^k s^2 k) on s = 200 samples.
+    """
+    import itertools
+
+    from geoshape.correspondence.reorder import best_match_cost, embedding_samples
+
+    best = alignments[0]
+    seen = {(a.perm, a.signs) for a in alignments}
+    A_s, B_s = A[embedding_samples(A, 200)], B[embedding_samples(B, 200)]
+    out = []
+    for signs in itertools.product((1, -1), repeat=len(best.signs)):
+        if (best.perm, signs) not in seen:
+            trial = Alignment(best.perm, signs, 0.0)
+            out.append(Alignment(best.perm, signs, best_match_cost(A_s, trial.apply(B_s))))
+    return out
+
+
+def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_iterations=6,
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
               n_samples=None, seed=0):
@@ -227,6 +249,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=12, n_refine=2, icp_i
     timings = {}
     A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=n_keep,
                                             n_samples=n_samples, seed=seed, timings=timings)
+    alignments = alignments + _sign_flip_variants(alignments, A, B)
     t = time.perf_counter()
     lb_k = min(lb_k, m1.n - 1, m2.n - 1)
     screen_k = min(screen_k, lb_k)
@@ -251,16 +274,19 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=12, n_refine=2, icp_i
     timings["screening"] = time.perf_counter() - t
     # 2. refine the most isometric candidate and the most isometric one of the opposite
     #    coarse orientation (its likely mirror image): on coarse maps the orientation
-    #    signal is weak and can point the wrong way, on refined maps it is decisive
+    #    signal is weak and can point the wrong way, on refined maps it is decisive. While
+    #    every refined map reverses orientation, refine the next candidates (at most
+    #    ``n_refine`` in all).
     t = time.perf_counter()
     ranked = sorted(candidates, key=lambda c: c["zoomout_energy"])
     best = ranked[0]
     mirror = [c for c in ranked if np.sign(c["orientation"]) != np.sign(best["orientation"])]
-    to_refine = [best] + mirror[:1] + [c for c in ranked[1:] if c is not (mirror[:1] or [None])[0]][
-        : max(0, n_refine - 2)]
+    queue = [best] + mirror[:1] + [c for c in ranked[1:] if not mirror or c is not mirror[0]]
     s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
     refined = []
-    for c in to_refine:
+    for c in queue[: max(n_refine, 1)]:
+        if len(refined) >= 2 and any(r[0] is False for r in refined):
+            break  # an orientation-preserving map and its rival have been refined
         p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
                               samples1=s1, samples2=s2, return_energy=True)
         orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
