@@ -323,8 +323,14 @@ def _markdown(rows, meta) -> str:
         f"{r['source']} vs {r['partner']}: [{r['eigenvalues_source']}] | [{r['eigenvalues_partner']}]"
         for r in rows) + ".")
     first = [r for r in rows if r["switches_truth"]]
+    involved = sorted({i + 1 for r in rows for i, tok in enumerate(r["perm_truth"].split())
+                       if int(tok[1:]) != i + 1})
+    mixed = sorted({i + 1 for r in rows for i, x in enumerate(r["corr_truth"].split()) if float(x) < 0.9})
     lines.append(
-        f"Switches found in {len(first)} of {len(rows)} pairs. The thesis (Fig. 4.3, 252-vertex "
-        "meshes) shows compatible eigenvectors up to the 4th and a switch of the 5th and 6th."
+        f"Switches (truth) found in {len(first)} of {len(rows)} pairs, involving eigenvectors "
+        f"{involved or 'none'} (numbered after the dropped first; the thesis counts the dropped one, so "
+        f"add 1 to compare); eigenvectors with |corr| < 0.9 in some pair: {mixed or 'none'}. The thesis "
+        "(Fig. 4.3, 252-vertex meshes) shows compatible eigenvectors up to its 4th and a switch of its "
+        "5th and 6th."
     )
     return "\n".join(lines)
