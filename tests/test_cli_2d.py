@@ -80,6 +80,11 @@ def test_bench_lists_2d_benchmarks(capsys):
 def test_demo_runs(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--per-class", "2", "--method", "gsc"]) == 0
     for name in ("match2d.png", "retrieval_matrix.png", "metrics.md", "metrics.json",
-                 "silhouettes/labels.csv"):
+                 "silhouettes/labels.csv", "correspondence3d.png", "correspondence3d_map.txt"):
         assert (tmp_path / name).is_file()
     assert "bull's-eye" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "metrics.json").read_text())["correspondence3d"]
+    # two poses of one generated biped: the map keeps left and right (not the mirror image,
+    # which would reverse the orientation of the mapped triangles) and lands near the truth
+    assert summary["orientation"] > 0
+    assert summary["median_error"] < 0.1

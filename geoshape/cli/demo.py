@@ -120,4 +120,5 @@ def _demo_3d(out, seed: int) -> dict:
     diag = float(np.linalg.norm(np.ptp(V1, axis=0)))
     err = np.linalg.norm(V1[result.p2p_12] - V1, axis=1) / diag  # measured on the rest pose
     return {"vertices": len(V1), "exact": float(np.mean(result.p2p_12 == np.arange(len(V1)))),
-            "median_error": float(np.median(err)), "seconds": seconds}
+            "median_error": float(np.median(err)), "orientation": result.details["orientation"],
+            "seconds": seconds}

@@ -293,14 +293,15 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
         c.update(refined_energy=energy, refined_orientation=orient)
         refined.append((orient <= 0, energy, p2p, c))
     timings["refinement"] = time.perf_counter() - t
+    details = {}
     _, energy, p2p, chosen = min(refined, key=lambda r: (r[0], r[1]))
     keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
     alts = [{key: c[key] for key in keys if key in c} for c in ranked]
     if _DEBUG_KEEP_MAPS:
         for a, c in zip(alts, ranked, strict=True):
             a["p2p"] = c["p2p"]
-    return Correspondence(p2p, energy, "geoshape", chosen["alignment"], alts, timings,
-                          {"orientation": chosen["refined_orientation"]})
+    details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+    return Correspondence(p2p, energy, "geoshape", chosen["alignment"], alts, timings, details)
 
 
 def _shapiro_brady(m1, m2, *, scaling, name, k=5, n_samples=None, seed=0):
