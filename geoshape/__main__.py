@@ -12,7 +12,6 @@ batch were skipped), 2 bad usage or bad input (one line on stderr, no traceback)
 from __future__ import annotations
 
 import argparse
-import importlib
 import logging
 import sys
 
@@ -45,14 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"geoshape {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    from geoshape.cli._common import import_if_present
+
     for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(f"geoshape.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"geoshape.cli.{name}":
-                continue
-            raise
-        module.register(subparsers)
+        module = import_if_present(f"geoshape.cli.{name}")
+        if module is not None:
+            module.register(subparsers)
     return parser
 
 

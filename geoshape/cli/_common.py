@@ -2,9 +2,25 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
+from types import ModuleType
 from typing import Any
+
+
+def import_if_present(module_name: str) -> ModuleType | None:
+    """Import ``module_name``, or return None if that module itself does not exist.
+
+    Registries of sub-commands list modules that a feature adds; a missing one is skipped,
+    while an import error *inside* an existing module still propagates.
+    """
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            return None
+        raise
 
 
 def to_jsonable(value: Any) -> Any:

@@ -15,7 +15,7 @@ keep its top-level imports light (NumPy at most; heavy imports inside ``run``), 
 
 from __future__ import annotations
 
-import importlib
+from geoshape.cli._common import import_if_present
 
 #: (sub-command, module) pairs, in the order ``geoshape bench --help`` lists them.
 BENCHMARKS: list[tuple[str, str]] = [
@@ -28,15 +28,6 @@ BENCHMARKS: list[tuple[str, str]] = [
 ]
 
 
-def _load(module_name: str):
-    try:
-        return importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name == module_name:
-            return None
-        raise
-
-
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "bench",
@@ -46,7 +37,7 @@ def register(subparsers) -> None:
     )
     sub = p.add_subparsers(dest="benchmark", metavar="BENCHMARK")
     for name, module_name in BENCHMARKS:
-        module = _load(module_name)
+        module = import_if_present(module_name)
         if module is None:
             continue
         bp = sub.add_parser(name, help=getattr(module, "HELP", None),

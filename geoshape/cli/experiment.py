@@ -9,16 +9,8 @@ Each experiment writes ``DIR/NAME.png`` (plot), ``DIR/NAME.csv`` and ``DIR/NAME.
 from __future__ import annotations
 
 import argparse
-import importlib
 
-
-def _load(module_name: str):
-    try:
-        return importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name == module_name:
-            return None
-        raise
+from geoshape.cli._common import import_if_present
 
 
 def register(subparsers) -> None:
@@ -32,7 +24,7 @@ def register(subparsers) -> None:
     )
     sub = p.add_subparsers(dest="experiment", metavar="NAME")
     for name, module_name in EXPERIMENTS:
-        module = _load(module_name)
+        module = import_if_present(module_name)
         if module is None:
             continue
         ep = sub.add_parser(name, help=module.HELP, description=module.HELP)

@@ -28,7 +28,7 @@ def plot_correspondence(path: str | os.PathLike, V1, F1, V2, F2, p2p_12, *, titl
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from geoshape.io.atomic import atomic_path
+    from geoshape.io.atomic import save_figure_atomic
     from geoshape.spectral.render import draw_mesh
 
     src_rgba, tgt_rgba = transferred_colors(V2, p2p_12)
@@ -44,9 +44,6 @@ def plot_correspondence(path: str | os.PathLike, V1, F1, V2, F2, p2p_12, *, titl
         if title:
             fig.suptitle(title, fontsize=10)
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.9, wspace=0)
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png")
+        return save_figure_atomic(fig, path)
     finally:
         plt.close(fig)
-    return path

@@ -76,3 +76,12 @@ def save_npy_atomic(path: str | os.PathLike, array) -> None:
 
     with atomic_path(path, suffix=".npy") as tmp:
         np.save(tmp, array)
+
+
+def save_figure_atomic(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
+    """Save a matplotlib figure atomically; the format follows ``path``'s extension."""
+    path = Path(path)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    with atomic_path(path, suffix=path.suffix) as tmp:
+        fig.savefig(tmp, format=fmt, **savefig_kwargs)
+    return path

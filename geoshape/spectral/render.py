@@ -139,7 +139,7 @@ def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from geoshape.io.atomic import atomic_path
+    from geoshape.io.atomic import save_figure_atomic
 
     V, F = check_mesh(V, F)
     if values is not None:
@@ -160,9 +160,6 @@ def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95 if title else 1)
         if title:
             ax.set_title(title)
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png")
+        return save_figure_atomic(fig, path)
     finally:
         plt.close(fig)
-    return path
