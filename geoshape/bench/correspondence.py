@@ -178,7 +178,8 @@ def _run(args: argparse.Namespace) -> int:
                  f"median time ratio {g_t / p_t:.3f}\n")
     set_name = f"{folder.name}/{args.pairs}" + (f" (first {args.limit})" if args.limit else "")
     cmd = (f"geoshape bench correspondence {args.dir} --pairs {args.pairs}"
-           + (f" --limit {args.limit}" if args.limit else "") + f" --landmarks {args.landmarks}")
+           + (f" --limit {args.limit}" if args.limit else "")
+           + f" --methods {args.methods} --peer {args.peer} --landmarks {args.landmarks}")
     sym_note = ("symmetry-aware on the 36 SCB feature points" if feature_points is not None
                 else "symmetry-aware: per pair the better of direct and mirrored ground truth")
     text = (f"### 3D correspondence — {set_name}\n\nCommand: `{cmd}`. Errors: geodesic distance / √area on "

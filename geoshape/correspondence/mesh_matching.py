@@ -316,9 +316,9 @@ def _shapiro_brady(m1, m2, *, scaling, name, k=5, n_samples=None, seed=0):
     return Correspondence(p2p, float(d.sum()), name, best, alts, timings)
 
 
-def _rigid(m1, m2):
+def _rigid(m1, m2, *, seed=0, n_iter: int = 50):  # deterministic: seed accepted for a uniform API
     t = time.perf_counter()
-    X2, p2p = rigid_icp(m1.V, m2.V)
+    X2, p2p = rigid_icp(m1.V, m2.V, n_iter=n_iter)
     d = np.linalg.norm(m1.V - X2[p2p], axis=1)
     return Correspondence(p2p, float(d.sum()), "rigid-icp", timings={"icp": time.perf_counter() - t})
 
