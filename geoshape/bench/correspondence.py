@@ -192,7 +192,7 @@ def _run(args: argparse.Namespace) -> int:
         plot = Path(__file__).resolve().parents[2] / "docs" / "img" / f"correspondence_{folder.name}.png"
     if plot:
         curves = {m: np.concatenate(errs[m]) for m in methods if errs[m]}
-        plot_error_curves(curves, plot, title=f"Cumulative geodesic error — {set_name}")
+        plot_error_curves(curves, plot, title=f"Geodesic error — {folder.name}")
         text += f"\n![cumulative error](img/{Path(plot).name})\n"
     if not args.no_results:
         section = args.section or f"correspondence-{folder.name}-{Path(args.pairs).stem}"
