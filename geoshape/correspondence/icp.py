@@ -30,12 +30,14 @@ def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0
 
 
 def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | None = None,
-                 anneal: float = 0.5, seed: int = 0) -> tuple[np.ndarray, dict]:
+                 anneal: float = 0.5, seed: int = 0, return_transform: bool = False):
     """Warp ``B (n2, k)`` towards ``A (n1, k)`` with thin-plate splines.
 
     Returns
     -------
-    B_warped : (n2, k) float64
+    B_warped : (n2, k) float64 — or, with ``return_transform``, the fitted
+        :class:`~geoshape.correspondence.tps.ThinPlateSpline` (identity if no iteration ran),
+        to apply to just the rows a caller needs
     info : dict with ``iterations``, ``lambdas`` (λ per iteration), ``changed`` (share of
         controls whose match changed per iteration).
     """
@@ -43,22 +45,26 @@ def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | N
     B = np.asarray(B, dtype=np.float64)
     ctrl = embedding_samples(B, n_controls, seed)
     lam = mean_pair_distance(A, B, seed=seed) if lam is None else float(lam)
-    Bw = B.copy()
+    B_ctrl = B[ctrl]
+    warped_ctrl = B_ctrl  # only the controls are warped inside the loop: O(c^2 k) per step
+    tps = None
     prev = None
     info = {"iterations": 0, "lambdas": [], "changed": []}
     for _ in range(n_iter):
-        _, match = nearest(A, Bw[ctrl])
+        _, match = nearest(A, warped_ctrl)
         changed = 1.0 if prev is None else float(np.mean(match != prev))
         info["changed"].append(changed)
         if prev is not None and changed == 0.0:
             break
-        tps = fit_tps(B[ctrl], A[match], lam)
-        Bw = tps(B)
+        tps = fit_tps(B_ctrl, A[match], lam)
+        warped_ctrl = tps(B_ctrl)
         info["lambdas"].append(lam)
         info["iterations"] += 1
         lam *= anneal
         prev = match
-    return Bw, info
+    if tps is None:
+        tps = fit_tps(B_ctrl, B_ctrl, 0.0)
+    return (tps if return_transform else tps(B)), info
 
 
 def _procrustes(X, Y):

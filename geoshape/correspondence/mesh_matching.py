@@ -261,8 +261,9 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     t = time.perf_counter()
     candidates = []
     for a in alignments:
-        Bw, _ = nonrigid_icp(A, a.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed)
-        init = nearest(Bw, A[c1])[1]
+        warp, _ = nonrigid_icp(A, a.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed,
+                               return_transform=True)
+        init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
         full_init = np.zeros(m1.n, np.int64)
         full_init[c1] = init
         coarse, energy = zoomout(b1, b2, full_init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
@@ -287,14 +288,21 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     for c in queue[: max(n_refine, 1)]:
         if len(refined) >= 2 and any(r[0] is False for r in refined):
             break  # an orientation-preserving map and its rival have been refined
+        # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
         p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                              samples1=s1, samples2=s2, return_energy=True)
+                              samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
         orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
         c.update(refined_energy=energy, refined_orientation=orient)
         refined.append((orient <= 0, energy, p2p, c))
     timings["refinement"] = time.perf_counter() - t
+    _, energy, coarse, chosen = min(refined, key=lambda r: (r[0], r[1]))
+    t = time.perf_counter()
+    from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p
+
+    C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
+    p2p = full_resolution_map(b1, b2, C, coarse, m2.V)
+    timings["full_resolution"] = time.perf_counter() - t
     details = {}
-    _, energy, p2p, chosen = min(refined, key=lambda r: (r[0], r[1]))
     keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
     alts = [{key: c[key] for key in keys if key in c} for c in ranked]
     if _DEBUG_KEEP_MAPS:
