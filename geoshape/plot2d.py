@@ -71,6 +71,16 @@ def plot_contour_matching(P, Q, p2p_12, path: str | os.PathLike, *, title: str =
         fig.savefig(tmp, dpi=120)
 
 
+def draw_class_boundaries(ax, labels) -> None:
+    """Thin lines between consecutive runs of equal labels on a matrix image (≤ 60 classes)."""
+    labels = list(labels)
+    cuts = [k for k in range(1, len(labels)) if labels[k] != labels[k - 1]]
+    if len(cuts) < 60:
+        for c in cuts:
+            ax.axhline(c - 0.5, color="tab:orange", lw=0.4)
+            ax.axvline(c - 0.5, color="tab:orange", lw=0.4)
+
+
 def plot_distance_matrix(D, path: str | os.PathLike, *, labels=None, title: str = "") -> None:
     """Image of a dissimilarity matrix (dark = similar, as thesis Fig. 3.7), class ticks.
 
@@ -82,12 +92,7 @@ def plot_distance_matrix(D, path: str | os.PathLike, *, labels=None, title: str 
     im = ax.imshow(D, cmap="gray", interpolation="nearest")
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     if labels is not None and len(labels) == len(D):
-        labels = list(labels)
-        cuts = [k for k in range(1, len(labels)) if labels[k] != labels[k - 1]]
-        if len(cuts) < 60:
-            for c in cuts:
-                ax.axhline(c - 0.5, color="tab:orange", lw=0.4)
-                ax.axvline(c - 0.5, color="tab:orange", lw=0.4)
+        draw_class_boundaries(ax, labels)
     if title:
         ax.set_title(title)
     fig.tight_layout()

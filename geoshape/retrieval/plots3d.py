@@ -50,12 +50,9 @@ def plot_similarity_matrix(D, path: str | os.PathLike, *, labels=None, title: st
     im = ax.imshow(S, cmap="gray", interpolation="nearest", vmin=0, vmax=1)
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     if labels is not None and len(labels) == len(D):
-        labels = list(labels)
-        cuts = [k for k in range(1, len(labels)) if labels[k] != labels[k - 1]]
-        if len(cuts) < 60:
-            for c in cuts:
-                ax.axhline(c - 0.5, color="tab:orange", lw=0.4)
-                ax.axvline(c - 0.5, color="tab:orange", lw=0.4)
+        from geoshape.plot2d import draw_class_boundaries
+
+        draw_class_boundaries(ax, labels)
     if title:
         ax.set_title(title)
     fig.tight_layout()
