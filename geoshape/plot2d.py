@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from geoshape.io.atomic import atomic_path
+from geoshape.io.atomic import save_figure_atomic
 
 __all__ = ["plot_contour_matching", "plot_distance_matrix"]
 
@@ -67,8 +67,7 @@ def plot_contour_matching(P, Q, p2p_12, path: str | os.PathLike, *, title: str =
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120)
+    save_figure_atomic(fig, path, dpi=120)
 
 
 def draw_class_boundaries(ax, labels) -> None:
@@ -96,5 +95,4 @@ def plot_distance_matrix(D, path: str | os.PathLike, *, labels=None, title: str 
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120)
+    save_figure_atomic(fig, path, dpi=120)

@@ -430,11 +430,10 @@ def plot_error_curves(curves: dict, path: str | os.PathLike, *, title: str | Non
     -------
     pathlib.Path
     """
-    from pathlib import Path
 
     from matplotlib.figure import Figure
 
-    from geoshape.io.atomic import atomic_path
+    from geoshape.io.atomic import save_figure_atomic
 
     fig = Figure(figsize=(5, 4))
     ax = fig.add_subplot(1, 1, 1)
@@ -452,7 +451,4 @@ def plot_error_curves(curves: dict, path: str | os.PathLike, *, title: str | Non
         ax.set_title(title)
     if curves:
         ax.legend(loc="lower right")
-    dest = Path(path)
-    with atomic_path(dest) as tmp:
-        fig.savefig(tmp, format=dest.suffix.lstrip(".") or "png", dpi=120)
-    return dest
+    return save_figure_atomic(fig, path, dpi=120)

@@ -344,11 +344,10 @@ def plot_precision_recall(curves: dict, path: str | os.PathLike, title: str | No
     pathlib.Path
         The written file.
     """
-    from pathlib import Path
 
     from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
 
-    from geoshape.io.atomic import atomic_path
+    from geoshape.io.atomic import save_figure_atomic
 
     fig = Figure(figsize=(5, 4))
     ax = fig.add_subplot(1, 1, 1)
@@ -367,7 +366,4 @@ def plot_precision_recall(curves: dict, path: str | os.PathLike, title: str | No
         ax.set_title(title)
     if curves:
         ax.legend(loc="lower left")
-    dest = Path(path)
-    with atomic_path(dest) as tmp:
-        fig.savefig(tmp, format=dest.suffix.lstrip(".") or "png", dpi=120)
-    return dest
+    return save_figure_atomic(fig, path, dpi=120)

@@ -17,13 +17,9 @@ __all__ = ["plot_similarity_matrix", "draw_mesh", "plot_query_strip"]
 
 
 def _save(fig, path) -> None:
-    from pathlib import Path
+    from geoshape.io.atomic import save_figure_atomic
 
-    from geoshape.io.atomic import atomic_path
-
-    dest = Path(path)
-    with atomic_path(dest) as tmp:
-        fig.savefig(tmp, format=dest.suffix.lstrip(".") or "png", dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
 
 
 def plot_similarity_matrix(D, path: str | os.PathLike, *, labels=None, title: str = "") -> None:

@@ -104,6 +104,25 @@ def load_tosca(folder: Path, name: str, n_vertices: int | None = None) -> TestMe
     return TestMesh(label, Vr, Fr, mirror[ids], "tosca_r5k")
 
 
+def experiment_meshes(tosca, generated, base_vertices: int, seed: int = 0,
+                      data_dir=None) -> tuple[list[TestMesh], list[str]]:
+    """The TOSCA meshes named in ``tosca`` (when the data is there) and the generated
+    classes named in ``generated``; plus the notes for the table (missing data).
+
+    Raises InvalidOptionError when nothing is left to run on.
+    """
+    folder = tosca_folder(data_dir)
+    notes, meshes = [], []
+    if folder is None and names(tosca):
+        notes.append(NO_DATA_NOTE)
+    elif folder is not None:
+        meshes += [load_tosca(folder, name, base_vertices) for name in names(tosca)]
+    meshes += [generated_mesh(cls, base_vertices, seed) for cls in names(generated)]
+    if not meshes:
+        raise InvalidOptionError("no meshes to run on (give --tosca or --generated)")
+    return meshes, notes
+
+
 def tosca_landmarks(folder: Path, name: str) -> np.ndarray:
     """0-based ``.vts`` landmarks of tosca_r5k mesh ``name`` (5000 ids, with repeats)."""
     from geoshape.io.datasets import read_vts
@@ -183,12 +202,9 @@ def write_table(out_dir: str | os.PathLike, name: str, rows: list[dict], meta: d
 
 def save_figure(fig, path: str | os.PathLike) -> Path:
     """Save a Matplotlib ``Figure`` to ``path`` atomically (format from the extension)."""
-    from geoshape.io.atomic import atomic_path
+    from geoshape.io.atomic import save_figure_atomic
 
-    dest = Path(path)
-    with atomic_path(dest) as tmp:
-        fig.savefig(tmp, format=dest.suffix.lstrip(".") or "png", dpi=110)
-    return dest
+    return save_figure_atomic(fig, path, dpi=110)
 
 
 class Stopwatch:

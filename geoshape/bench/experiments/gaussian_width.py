@@ -116,15 +116,7 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
         raise c.InvalidOptionError(f"repeats must be a whole number >= 1, got {repeats!r}")
     rhos = tuple(parse_sigma(float(r)) for r in c.parse_list(rhos, float))
     watch = c.Stopwatch()
-    folder = c.tosca_folder(data_dir)
-    notes, meshes = [], []
-    if folder is None and c.names(tosca):
-        notes.append(c.NO_DATA_NOTE)
-    elif folder is not None:
-        meshes += [c.load_tosca(folder, name, base_vertices) for name in c.names(tosca)]
-    meshes += [c.generated_mesh(cls, base_vertices, seed) for cls in c.names(generated)]
-    if not meshes:
-        raise c.InvalidOptionError("no meshes to run on (give --tosca or --generated)")
+    meshes, notes = c.experiment_meshes(tosca, generated, base_vertices, seed, data_dir)
 
     rows = []
     for mesh in meshes:
