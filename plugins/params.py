@@ -112,6 +112,13 @@ class Param:
     def parse_text(self, text: str, filter_id: str) -> Any:
         return text
 
+    def _parse_with(self, convert, text: str, filter_id: str, expected: str) -> Any:
+        """``convert(text)``, or this parameter's error saying what was ``expected``."""
+        try:
+            return convert(text.strip())
+        except ValueError:
+            raise self.error(filter_id, f"expected {expected}, got {text!r}") from None
+
     def to_mlx(self, value: Any) -> dict[str, str]:
         """Attributes (``type``, ``value``, …) that write ``value`` to an ``.mlx`` file."""
         return {"type": self.mlx_type, "value": str(value)}
@@ -184,10 +191,7 @@ class IntParam(_Ranged):
         return self._check_range(int(value), filter_id)
 
     def parse_text(self, text, filter_id):
-        try:
-            return int(text.strip())
-        except ValueError:
-            raise self.error(filter_id, f"expected an integer, got {text!r}") from None
+        return self._parse_with(int, text, filter_id, "an integer")
 
 
 @dataclass(frozen=True)
@@ -204,10 +208,7 @@ class FloatParam(_Ranged):
         return self._check_range(value, filter_id)
 
     def parse_text(self, text, filter_id):
-        try:
-            return float(text.strip())
-        except ValueError:
-            raise self.error(filter_id, f"expected a number, got {text!r}") from None
+        return self._parse_with(float, text, filter_id, "a number")
 
     def to_mlx(self, value):
         return {"type": self.mlx_type, "value": repr(float(value))}
@@ -250,10 +251,7 @@ class PercentageParam(_Ranged):
         return super().from_mlx(attrs, filter_id)
 
     def parse_text(self, text, filter_id):
-        try:
-            return float(text.strip())
-        except ValueError:
-            raise self.error(filter_id, f"expected a number, got {text!r}") from None
+        return self._parse_with(float, text, filter_id, "a number")
 
     def to_mlx(self, value):
         if isinstance(value, AbsoluteValue):
@@ -316,10 +314,7 @@ class MeshParam(Param):
         return int(value)
 
     def parse_text(self, text, filter_id):
-        try:
-            return int(text.strip())
-        except ValueError:
-            raise self.error(filter_id, f"expected a mesh index, got {text!r}") from None
+        return self._parse_with(int, text, filter_id, "a mesh index")
 
 
 @dataclass(frozen=True)
