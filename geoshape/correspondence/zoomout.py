@@ -42,17 +42,43 @@ def functional_map_from_p2p(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_
     return solve_triangular(R[:k1, :k1], Q[:, :k1].T @ basis2.evecs[p2p_12, :k2])
 
 
-def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
-                            rows1: np.ndarray | None = None, rows2: np.ndarray | None = None) -> np.ndarray:
-    """Point map 1 → 2 from ``C_21``: nearest row of ``Φ2`` for each row of ``Φ1 C_21``.
+#: how a point map is read off a functional map (see :func:`p2p_from_functional_map`)
+RECOVERY = "adjoint"
 
-    ``rows1``/``rows2`` restrict queries and candidates; the result indexes mesh-2
-    vertices (not positions in ``rows2``).
+
+def aligned_bases(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
+                  rows1: np.ndarray | None = None, rows2: np.ndarray | None = None,
+                  recovery: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(queries, candidates)``: rows of mesh 1 and of mesh 2 expressed in one basis.
+
+    ``"adjoint"`` (default): ``Φ1`` against ``Φ2 C_21ᵀ`` — the target basis is carried
+    into the source basis, as ZoomOut and the original functional-map paper recover maps.
+    ``"pullback"``: ``Φ1 C_21`` against ``Φ2``. Both agree when ``C_21`` is orthonormal;
+    on real pairs (``C`` only near-orthonormal) the adjoint rule was more precise on
+    tosca_r5k (see docs/correspondence3d.md).
     """
+    recovery = RECOVERY if recovery is None else recovery
     k1, k2 = C_21.shape
     E1 = basis1.evecs[:, :k1] if rows1 is None else basis1.evecs[rows1, :k1]
     E2 = basis2.evecs[:, :k2] if rows2 is None else basis2.evecs[rows2, :k2]
-    _, j = nearest(E2, E1 @ C_21)
+    if recovery == "adjoint":
+        return E1, E2 @ C_21.T
+    if recovery == "pullback":
+        return E1 @ C_21, E2
+    raise InvalidOptionError(f"unknown map recovery {recovery!r}; expected 'adjoint' or 'pullback'")
+
+
+def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
+                            rows1: np.ndarray | None = None, rows2: np.ndarray | None = None,
+                            recovery: str | None = None) -> np.ndarray:
+    """Point map 1 → 2 from ``C_21``: nearest neighbours in a shared spectral basis.
+
+    ``rows1``/``rows2`` restrict queries and candidates; the result indexes mesh-2
+    vertices (not positions in ``rows2``). ``recovery`` as in :func:`aligned_bases`.
+    Cost O(s1 s2 k) (blocked BLAS above 8 dimensions).
+    """
+    queries, candidates = aligned_bases(basis1, basis2, C_21, rows1, rows2, recovery)
+    _, j = nearest(candidates, queries)
     return j if rows2 is None else np.asarray(rows2)[j]
 
 
@@ -138,11 +164,9 @@ def full_resolution_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np
     """
     from scipy.spatial import cKDTree
 
-    k1, k2 = C_21.shape
     if len(V2) <= BRUTE_FORCE_MAX:
         return p2p_from_functional_map(basis1, basis2, C_21)
-    E1 = basis1.evecs[:, :k1] @ C_21  # (n1, k2)
-    E2 = basis2.evecs[:, :k2]
+    E1, E2 = aligned_bases(basis1, basis2, C_21)
     coarse = np.asarray(coarse_12, dtype=np.int64)
     uniq, inverse = np.unique(coarse, return_inverse=True)
     _, near = cKDTree(V2).query(V2[uniq], k=min(n_candidates, len(V2)))  # (u, c)
