@@ -63,7 +63,7 @@ def _other_mesh(ms) -> int:
 
 
 def _evd_samples(ms) -> int:
-    """min(60, number of vertices of the current mesh)"""
+    """min(300, number of vertices of the current mesh)"""
     from geoshape.spectral.evd import EVD_N_SAMPLES
 
     if ms is None or not len(ms):
@@ -341,8 +341,8 @@ def _evd_apply(ms, p, progress):
     from geoshape.spectral.evd import evd_descriptor
 
     mesh = ms.current_mesh()
-    evd = evd_descriptor(mesh.V, mesh.F, n_eigenvalues=p["n_eigenvalues"], n_samples=p["n_samples"],
-                         geodesics=p["geodesics"], seed=p["seed"])
+    evd = evd_descriptor(mesh.V, mesh.F, config=p["config"], n_eigenvalues=p["n_eigenvalues"],
+                         n_samples=p["n_samples"], geodesics=p["geodesics"], seed=p["seed"])
     return {"evd": evd}
 
 
@@ -355,6 +355,9 @@ register(Filter(
     categories=("measure", "spectral"),
     arity=Arity.SINGLE,
     params=(
+        EnumParam("config", "quadrature", "Configuration", "quadrature: samples weighted by their "
+                  "geodesic Voronoi areas, sigma = 0.1 sqrt(area); thesis: unweighted, sigma = max "
+                  "geodesic distance (the thesis used 60 samples)", choices=("quadrature", "thesis")),
         IntParam("n_eigenvalues", 20, "Eigenvalues", "descriptor length (<= n_samples)", min=1),
         IntParam("n_samples", _evd_samples, "Samples", "max-min samples; keep it fixed across a "
                  "collection", min=1),

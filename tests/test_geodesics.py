@@ -30,7 +30,7 @@ from geoshape.geometry.graph import (
     mesh_edges,
     structural_graph,
 )
-from geoshape.geometry.sampling import farthest_point_sampling
+from geoshape.geometry.sampling import farthest_point_sampling, geodesic_voronoi_sampling
 
 TOL = {  # method: (max relative, mean relative)
     "exact": (2e-3, 1e-3),
@@ -213,3 +213,24 @@ def test_farthest_point_sampling():
     assert np.allclose(D, geodesic_distances(V, F, samples))
     again, _ = farthest_point_sampling(V, F, 6, seed=3)
     assert np.array_equal(samples, again)
+
+
+def test_geodesic_voronoi_sampling_matches_farthest_point_sampling():
+    from geoshape.geometry.graph import structural_graph
+
+    V, F = bumpy_sphere_for_sampling()
+    samples, D = farthest_point_sampling(V, F, 40, seed=5)
+    fast, owner, dist = geodesic_voronoi_sampling(structural_graph(V, F, 1), 40, seed=5)
+    assert np.array_equal(fast, samples)
+    assert np.allclose(dist, D.min(axis=0))
+    assert np.allclose(D[owner, np.arange(len(V))], D.min(axis=0))
+    with pytest.raises(InvalidOptionError, match="n_samples"):
+        geodesic_voronoi_sampling(structural_graph(V, F, 1), 0)
+
+
+def bumpy_sphere_for_sampling():
+    import trimesh
+
+    m = trimesh.creation.icosphere(3)
+    V = m.vertices * (1.0 + 0.2 * np.sin(3 * m.vertices[:, :1]))
+    return V, m.faces

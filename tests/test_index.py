@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from geoshape.retrieval.index import ShapeIndex
+from geoshape.retrieval.descriptors import descriptor_params
 
 
 def _write_meshes(folder, n: int, seed: int = 0):
@@ -121,8 +122,7 @@ def test_dask_and_processes_give_identical_descriptors(tmp_path):
         with ShapeIndex(tmp_path / f"{backend}.db") as idx:
             rep = idx.add([tmp_path / "m"], ["evd", "d2"], backend=backend, n_jobs=2)
             assert rep.added == 8 and not rep.failed
-            stores[backend] = {d: idx.load(d, {"descriptor": d, "version": 1, "seed": 0,
-                                              **({"affinity": "geodesic"} if d == "evd" else {})})
+            stores[backend] = {d: idx.load(d, descriptor_params(d, "geodesic" if d == "evd" else None))
                                for d in ("evd", "d2")}
     for d in ("evd", "d2"):
         pa, Xa = stores["processes"][d]

@@ -223,12 +223,56 @@ def test_evd_retriangulated_copy_close_other_class_far():
     cap_a = trimesh.creation.capsule(height=3.0, radius=0.5, count=[14, 14])
     cap_b = trimesh.creation.capsule(height=3.0, radius=0.5, count=[28, 28])
     plate = trimesh.creation.box(extents=[3.0, 2.0, 0.3]).subdivide().subdivide().subdivide()
-    d = [evd_descriptor(m.vertices, m.faces, n_samples=40) for m in (cap_a, cap_b, plate)]
-    assert d[0].shape == (20,) and np.all(np.diff(d[0]) <= 1e-12)
-    same, other = chi2_distance(d[0], d[1]), chi2_distance(d[0], d[2])
-    assert same < 0.2 * other
-    M = evd_distance_matrix(d)
-    assert np.allclose(M, M.T) and M[0, 1] == pytest.approx(same)
+    for config in ("quadrature", "thesis"):
+        d = [evd_descriptor(m.vertices, m.faces, config=config, n_samples=40) for m in (cap_a, cap_b, plate)]
+        assert d[0].shape == (20,) and np.all(np.diff(d[0]) <= 1e-12)
+        same, other = chi2_distance(d[0], d[1]), chi2_distance(d[0], d[2])
+        assert same < 0.2 * other, config
+        M = evd_distance_matrix(d)
+        assert np.allclose(M, M.T) and M[0, 1] == pytest.approx(same)
+
+
+def test_quadrature_evd_is_invariant_to_scale_rigid_motion_and_sampling_density():
+    """Area weights make the eigenvalues those of the surface operator, not of the samples."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    cap = trimesh.creation.capsule(height=3.0, radius=0.5, count=[24, 24])
+    ref = evd_descriptor(cap.vertices, cap.faces, n_samples=150)
+    R = Rotation.from_euler("xyz", [0.3, -1.1, 2.0]).as_matrix()
+    moved = evd_descriptor(2.5 * cap.vertices @ R.T + [1.0, -4.0, 2.0], cap.faces, n_samples=150)
+    # equal up to the order in which exactly tied farthest points are taken (round-off)
+    assert np.allclose(moved, ref, rtol=1e-2)
+    # twice the samples: the unweighted block's eigenvalues double, the weighted ones stay
+    denser = evd_descriptor(cap.vertices, cap.faces, n_samples=300)
+    assert chi2_distance(ref, denser) < 0.05 * chi2_distance(
+        evd_descriptor(cap.vertices, cap.faces, config="thesis", n_samples=150),
+        evd_descriptor(cap.vertices, cap.faces, config="thesis", n_samples=300))
+
+
+def test_quadrature_evd_on_the_sphere_has_spherical_harmonic_multiplicities():
+    """Funk–Hecke: a rotation-invariant kernel on the sphere has eigenvalue multiplicities 1, 3, 5."""
+    V, F = icosphere(4)
+    lam = evd_descriptor(V, F, n_samples=300) ** 2
+    assert lam[0] > 1.05 * lam[1]
+    # (graph geodesics are slightly anisotropic: the multiplets split by a few percent)
+    assert np.ptp(lam[1:4]) < 0.03 * lam[1] and lam[3] > 1.15 * lam[4]
+    assert np.ptp(lam[4:9]) < 0.05 * lam[4] and lam[8] > 1.15 * lam[9]
+    # the operator's eigenvalues, not the sample block's: the same with 100 or 600 samples
+    for n_samples in (100, 600):
+        assert np.allclose(evd_descriptor(V, F, n_samples=n_samples)[:9] ** 2, lam[:9], rtol=0.05)
+
+
+def test_evd_configurations_and_errors():
+    V, F = icosphere(2)
+    thesis = evd_descriptor(V, F, config="thesis")
+    explicit = evd_descriptor(V, F, config="quadrature", n_samples=60, sigma="max", weighting="none")
+    assert np.array_equal(thesis, explicit)
+    with pytest.raises(GeoshapeError, match="point cloud"):
+        evd_descriptor(V, np.zeros((0, 3), int), n_samples=60)
+    assert evd_descriptor(V, np.zeros((0, 3), int), config="thesis").shape == (20,)
+    with pytest.raises(InvalidOptionError, match="EVD configuration"):
+        evd_descriptor(V, F, config="fast")
 
 
 def test_bad_input():

@@ -16,7 +16,8 @@ On the 3D spectral embedding (thesis Fig. 4.10)
     and scale themselves.
 Spectral
     ``evd``: √ of the first 20 eigenvalues of the Nyström sample affinity, χ²
-    (:mod:`geoshape.spectral.evd`). ``ccd``: the correspondence cost descriptor — the
+    (:mod:`geoshape.spectral.evd`) — by default the area-weighted "quadrature"
+    configuration; ``evd_thesis`` is the thesis' own (60 unweighted samples, sigma = max). ``ccd``: the correspondence cost descriptor — the
     5-D embedding itself, subsampled to ``CCD_POINTS`` farthest points in embedding space;
     two are compared by :func:`ccd_distance` (best match after aligning the eigenvectors).
 
@@ -68,7 +69,7 @@ CCD_DIMS = 5
 #: eigenvector reordering used by CCD (see geoshape.correspondence.reorder)
 CCD_REORDER = "greedy"
 #: version of the stored descriptors; bump when a descriptor's numbers change
-DESCRIPTOR_VERSION = 1
+DESCRIPTOR_VERSION = 2
 
 
 # ---------------------------------------------------------------------------------------
@@ -306,7 +307,13 @@ class DescriptorSpec:
 def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0):
     from geoshape.spectral.evd import evd_descriptor
 
-    return evd_descriptor(V, F, affinity=affinity, seed=seed)
+    return evd_descriptor(V, F, config="quadrature", affinity=affinity, seed=seed)
+
+
+def _evd_thesis(V, F, *, affinity=DEFAULT_AFFINITY, seed=0):
+    from geoshape.spectral.evd import evd_descriptor
+
+    return evd_descriptor(V, F, config="thesis", affinity=affinity, seed=seed)
 
 
 def _shd(V, F, *, seed=0):
@@ -327,8 +334,10 @@ _INTRINSIC = _RIGID + ("bending",)
 DESCRIPTORS: dict[str, DescriptorSpec] = {
     s.name: s
     for s in [
-        DescriptorSpec("evd", "√ of the top 20 eigenvalues of the Nyström sample affinity (thesis)",
-                       _evd, "chi2", "spectral", _INTRINSIC),
+        DescriptorSpec("evd", "√ of the top 20 eigenvalues of the area-weighted affinity of 300 "
+                       "samples, sigma = 0.1 √area", _evd, "chi2", "spectral", _INTRINSIC),
+        DescriptorSpec("evd_thesis", "√ of the top 20 eigenvalues of the Nyström sample affinity "
+                       "(thesis: 60 samples, sigma = max)", _evd_thesis, "chi2", "spectral", _INTRINSIC),
         DescriptorSpec("ccd", "correspondence cost between 5-D spectral embeddings (thesis)",
                        ccd_descriptor, "ccd", "spectral", _INTRINSIC),
         DescriptorSpec("d2", "D2 shape distribution, 64 bins (Osada et al. 2002)",
@@ -416,10 +425,18 @@ def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: in
     >>> compute_descriptor(m.vertices, m.faces, "d2").shape
     (64,)
     """
+    from geoshape.retrieval.meshes import single_thread_blas
+
     params = descriptor_params(name, affinity, seed)
-    spec = DESCRIPTORS[name]
     if check:
         V, F = check_mesh(V, F, allow_no_faces=True)
+    # one BLAS thread: the same bits whichever runner (processes, Dask, serial) computes it
+    with single_thread_blas():
+        return _compute(V, F, name, params, seed)
+
+
+def _compute(V, F, name: str, params: dict, seed: int) -> np.ndarray:
+    spec = DESCRIPTORS[name]
     if spec.domain == "embedding":
         X = embedding_mesh(V, F, affinity=params["affinity"], seed=seed)
         return np.asarray(spec.compute(X, F, seed=seed), dtype=np.float64)

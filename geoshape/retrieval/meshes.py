@@ -36,6 +36,8 @@ def single_thread_blas():
         import contextlib
 
         return contextlib.nullcontext()
+    import scipy.linalg  # noqa: F401  (threadpoolctl only limits BLAS libraries already loaded)
+
     return threadpool_limits(limits=1, user_api="blas")
 
 
