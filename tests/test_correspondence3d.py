@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from geoshape.correspondence.mesh_matching import correspond
-from geoshape.correspondence.orientation import orientation_score
+from geoshape.correspondence.orientation import orientation_score, patch_orientation_score
 from geoshape.correspondence.proximity import proximity_anchors, proximity_match
 from geoshape.correspondence.reorder import align_embeddings
 from geoshape.correspondence.tps import fit_tps
@@ -115,6 +115,35 @@ def test_orientation_tells_a_map_from_its_mirror():
     identity = np.arange(len(V))
     assert orientation_score(V, F, V, F, identity) > 0.9
     assert orientation_score(V, F, mirrored, F[:, ::-1], identity) < -0.9
+
+
+def test_patch_orientation_on_samples_tells_a_map_from_its_mirror():
+    from geoshape.correspondence.reorder import embedding_samples
+
+    V, _, F = figure()
+    mirrored = V * [-1, 1, 1]
+    rng = np.random.default_rng(0)
+    noisy = np.arange(len(V))
+    noisy[rng.choice(len(V), len(V) // 10, replace=False)] = rng.integers(len(V), size=len(V) // 10)
+    for rows in (None, embedding_samples(V, 200)):
+        p2p = noisy if rows is None else noisy[rows]
+        assert patch_orientation_score(V, F, V, F, p2p, rows1=rows) > 0.6
+        assert patch_orientation_score(V, F, mirrored, F[:, ::-1], p2p, rows1=rows) < -0.6
+    with pytest.raises(InvalidOptionError, match="200 points"):
+        patch_orientation_score(V, F, V, F, noisy, rows1=embedding_samples(V, 200))
+
+
+def test_large_mesh_mode_recovers_a_permuted_copy(monkeypatch):
+    """Above LARGE_MESH vertices no stage maps every vertex until the last: same answer."""
+    import geoshape.correspondence.mesh_matching as mm
+
+    monkeypatch.setattr(mm, "LARGE_MESH", 500)
+    V, _, F = figure()
+    perm = np.random.default_rng(8).permutation(len(V))
+    inv = np.argsort(perm)
+    c = correspond(V, F, V[perm], inv[F], zoomout_samples=400, screen_samples=200)
+    assert c.details["large_mesh_mode"]
+    assert exact_share(c.p2p_12, inv) >= 0.99
 
 
 def test_bad_input_gives_clear_errors():

@@ -29,9 +29,27 @@ def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0
     return float(cdist(a, b).mean())
 
 
+def nearest_searcher(points: np.ndarray):
+    """``f(queries) -> (q,) indices`` of the nearest rows of ``points``; the index is built once."""
+    from geoshape.correspondence.nn import KD_TREE_MAX_DIM
+    from geoshape.geometry.knn import KNNIndex
+
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.shape[1] <= KD_TREE_MAX_DIM:
+        index = KNNIndex(points)
+        return lambda queries: np.asarray(index.query(np.ascontiguousarray(queries, dtype=np.float64),
+                                                      k=1)[1], dtype=np.int64)
+    return lambda queries: nearest(points, queries)[1]
+
+
 def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | None = None,
-                 anneal: float = 0.5, seed: int = 0, return_transform: bool = False):
+                 anneal: float = 0.5, seed: int = 0, return_transform: bool = False,
+                 controls: np.ndarray | None = None):
     """Warp ``B (n2, k)`` towards ``A (n1, k)`` with thin-plate splines.
+
+    ``controls`` (row indices of ``B``) replaces the farthest-point choice of the
+    ``n_controls`` controls, e.g. to share them between the signed orders of one
+    embedding. The nearest-point search structure on ``A`` is built once per call.
 
     Returns
     -------
@@ -43,15 +61,16 @@ def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | N
     """
     A = np.asarray(A, dtype=np.float64)
     B = np.asarray(B, dtype=np.float64)
-    ctrl = embedding_samples(B, n_controls, seed)
+    ctrl = embedding_samples(B, n_controls, seed) if controls is None else np.asarray(controls)
     lam = mean_pair_distance(A, B, seed=seed) if lam is None else float(lam)
+    nearest_in_A = nearest_searcher(A)
     B_ctrl = B[ctrl]
     warped_ctrl = B_ctrl  # only the controls are warped inside the loop: O(c^2 k) per step
     tps = None
     prev = None
     info = {"iterations": 0, "lambdas": [], "changed": []}
     for _ in range(n_iter):
-        _, match = nearest(A, warped_ctrl)
+        match = nearest_in_A(warped_ctrl)
         changed = 1.0 if prev is None else float(np.mean(match != prev))
         info["changed"].append(changed)
         if prev is not None and changed == 0.0:

@@ -240,11 +240,17 @@ def _sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
     return out
 
 
+#: above this many vertices (either mesh) screening and refinement work on samples only
+LARGE_MESH = 8000
+
+
 def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_iterations=6,
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
               n_samples=None, seed=0):
-    from geoshape.correspondence.zoomout import zoomout
+    from geoshape.correspondence.orientation import patch_orientation_score
+    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
 
     timings = {}
     A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=n_keep,
@@ -255,54 +261,87 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     screen_k = min(screen_k, lb_k)
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
     c1, c2 = m1.samples(screen_samples, seed), m2.samples(screen_samples, seed)
+    s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
     timings["laplacian"] = time.perf_counter() - t
+    # Large meshes: no step below touches every vertex until the final map — maps live on
+    # the samples and orientation is judged on sample triples.
+    large = max(m1.n, m2.n) > LARGE_MESH
+
+    def orientation(p2p, rows):
+        if large:
+            return patch_orientation_score(m1.V, m1.F, m2.V, m2.F, p2p, rows1=rows, seed=seed)
+        return orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+
     # 1. screen every candidate alignment by a coarse ZoomOut on few samples: the thesis'
     #    L2 reordering cost alone often ranks the right signed order only 5th-15th
     t = time.perf_counter()
     candidates = []
+    # the controls of B do not depend on the signed order (FPS distances are invariant);
+    # on large meshes they are matched against the refinement samples of A only
+    controls = embedding_samples(B, n_controls, seed)
+    A_targets = A[s1] if large else A
     for a in alignments:
-        warp, _ = nonrigid_icp(A, a.apply(B), n_iter=icp_iterations, n_controls=n_controls, seed=seed,
+        warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=icp_iterations, controls=controls, seed=seed,
                                return_transform=True)
         init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
-        full_init = np.zeros(m1.n, np.int64)
-        full_init[c1] = init
-        coarse, energy = zoomout(b1, b2, full_init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
-                                 step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
-                                 final_on_samples=True)
-        orient = orientation_score(m1.V, m1.F, m2.V, m2.F, coarse)
+        if large:
+            coarse, energy = zoomout(b1, b2, init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
+                                     step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
+                                     samples_only=True)
+        else:
+            full_init = np.zeros(m1.n, np.int64)
+            full_init[c1] = init
+            coarse, energy = zoomout(b1, b2, full_init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
+                                     step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
+                                     final_on_samples=True)
         candidates.append({"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": energy,
-                           "orientation": orient, "p2p": coarse, "alignment": a})
+                           "orientation": orientation(coarse, c1), "p2p": coarse, "alignment": a})
     timings["screening"] = time.perf_counter() - t
-    # 2. refine the most isometric candidate and the most isometric one of the opposite
-    #    coarse orientation (its likely mirror image): on coarse maps the orientation
-    #    signal is weak and can point the wrong way, on refined maps it is decisive. While
-    #    every refined map reverses orientation, refine the next candidates (at most
-    #    ``n_refine`` in all).
+    # 2. refine the most isometric candidate, and the most isometric candidates of clearly
+    #    positive and of clearly negative coarse orientation (coarse scores cluster near
+    #    ±0.3 for the direct and the mirrored map, near 0 for mixed ones): on coarse maps
+    #    the orientation signal is weak, on refined maps it is decisive. While every
+    #    refined map reverses orientation, refine the candidate of highest coarse
+    #    orientation next (at most ``n_refine`` in all).
     t = time.perf_counter()
     ranked = sorted(candidates, key=lambda c: c["zoomout_energy"])
-    best = ranked[0]
-    mirror = [c for c in ranked if np.sign(c["orientation"]) != np.sign(best["orientation"])]
-    queue = [best] + mirror[:1] + [c for c in ranked[1:] if not mirror or c is not mirror[0]]
-    s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
+    queue = [ranked[0]]
+    for side in (1.0, -1.0):  # the most isometric clearly direct and clearly mirrored candidates
+        group = [c for c in ranked if np.sign(c["orientation"]) == side]
+        if group:
+            strongest = max(abs(c["orientation"]) for c in group)
+            first = next(c for c in group if abs(c["orientation"]) >= 0.5 * strongest)
+            if all(first is not q for q in queue):
+                queue.append(first)
+    screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1] if large else None
     refined = []
-    for c in queue[: max(n_refine, 1)]:
-        if len(refined) >= 2 and any(r[0] is False for r in refined):
-            break  # an orientation-preserving map and its rival have been refined
-        # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
-        p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                              samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
-        orient = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+    while queue and len(refined) < max(n_refine, 1):
+        c = queue.pop(0)
+        if large:  # the samples' map: each refinement sample starts from its nearest screening sample
+            p2p, energy = zoomout(b1, b2, c["p2p"][screen_to_refine], k_start=screen_k, k_end=lb_k,
+                                  step=zoomout_step, samples1=s1, samples2=s2, return_energy=True,
+                                  samples_only=True)
+        else:  # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
+            p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                                  samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
+        orient = orientation(p2p, s1)
         c.update(refined_energy=energy, refined_orientation=orient)
         refined.append((orient <= 0, energy, p2p, c))
+        if not queue and all(r[0] for r in refined):
+            rest = [x for x in ranked if "refined_energy" not in x]
+            if rest:
+                queue.append(max(rest, key=lambda x: (x["orientation"], -x["zoomout_energy"])))
     timings["refinement"] = time.perf_counter() - t
     _, energy, coarse, chosen = min(refined, key=lambda r: (r[0], r[1]))
     t = time.perf_counter()
-    from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p
-
-    C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
+    if large:
+        C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k, rows1=s1)
+        coarse = coarse[nearest(m1.V[s1], m1.V)[1]]  # each vertex: its nearest sample's image
+    else:
+        C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
     p2p = full_resolution_map(b1, b2, C, coarse, m2.V)
     timings["full_resolution"] = time.perf_counter() - t
-    details = {}
+    details = {"large_mesh_mode": large}
     keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
     alts = [{key: c[key] for key in keys if key in c} for c in ranked]
     if _DEBUG_KEEP_MAPS:

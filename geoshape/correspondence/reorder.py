@@ -43,19 +43,28 @@ class Alignment:
 
 
 def embedding_samples(X: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
-    """Farthest-point samples of the rows of ``X`` (in embedding space), O(n_rows · n)."""
+    """Farthest-point samples of the rows of ``X`` (in embedding space), O(n_rows · n).
+
+    Distances are invariant to permuting and sign-flipping the columns, so every signed
+    eigenvector order of one embedding gets the same samples.
+    """
+    X = np.asarray(X, dtype=np.float64)
     m = len(X)
     if n >= m:
         return np.arange(m)
     rng = np.random.default_rng(seed)
-    chosen = [int(rng.integers(m))]
-    d = np.linalg.norm(X - X[chosen[0]], axis=1)
-    chosen[0] = int(d.argmax())  # start from an extremity: less seed dependence
-    d = np.linalg.norm(X - X[chosen[0]], axis=1)
+
+    def sq_dist(j):
+        diff = X - X[j]
+        return np.einsum("ij,ij->i", diff, diff)
+
+    # start from an extremity (the farthest row from a random one): less seed dependence
+    chosen = [int(sq_dist(int(rng.integers(m))).argmax())]
+    d = sq_dist(chosen[0])
     for _ in range(n - 1):
         j = int(d.argmax())
         chosen.append(j)
-        d = np.minimum(d, np.linalg.norm(X - X[j], axis=1))
+        np.minimum(d, sq_dist(j), out=d)
     return np.asarray(chosen)
 
 

@@ -85,7 +85,8 @@ def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21
 def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, *,
             k_start: int = 8, k_end: int = 60, step: int = 2,
             samples1: np.ndarray | None = None, samples2: np.ndarray | None = None,
-            return_energy: bool = False, final_on_samples: bool = False, V2=None):
+            return_energy: bool = False, final_on_samples: bool = False, V2=None,
+            samples_only: bool = False):
     """Refine ``p2p_12`` by spectral upsampling from ``k_start`` to ``k_end``.
 
     Parameters
@@ -102,6 +103,10 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     final_on_samples : bool
         Map every vertex of mesh 1 only onto ``samples2`` (a cheap coarse map, e.g. to
         screen candidate initialisations) instead of onto every vertex of mesh 2.
+    samples_only : bool
+        Return the map of ``samples1`` only (aligned with it), onto ``samples2``: no step
+        touches every vertex (large meshes). ``p2p_12`` may then be given on ``samples1``
+        only, too (length ``len(samples1)``).
     return_energy : bool
         Also return the off-diagonal energy of the final functional map, a measure of
         how far it is from an isometry (lower is better; comparable between candidate
@@ -119,7 +124,9 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     p2p = np.asarray(p2p_12, dtype=np.int64)
     rows1 = None if samples1 is None else np.asarray(samples1, dtype=np.int64)
     rows2 = None if samples2 is None else np.asarray(samples2, dtype=np.int64)
-    sub = p2p if rows1 is None else p2p[rows1]
+    if samples_only and (rows1 is None or rows2 is None):
+        raise InvalidOptionError("samples_only needs samples1 and samples2")
+    sub = p2p if rows1 is None or (samples_only and len(p2p) == len(rows1)) else p2p[rows1]
     ks = list(range(k_start, k_end + 1, step))
     if ks[-1] != k_end:
         ks.append(k_end)
@@ -129,6 +136,8 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
         C = functional_map_from_p2p(basis1, basis2, sub, k, k, rows1, qr)
         sub = p2p_from_functional_map(basis1, basis2, C, rows1, rows2)
     C = functional_map_from_p2p(basis1, basis2, sub, k_end, k_end, rows1, qr)
+    if samples_only:
+        return (sub, functional_map_energy(C)) if return_energy else sub
     if final_on_samples or (V2 is not None and rows2 is not None):
         full = p2p_from_functional_map(basis1, basis2, C, None, rows2)
         if not final_on_samples:
