@@ -75,6 +75,16 @@ def test_reordering(tmp_path):
     assert all(float(r["cost_ratio"]) >= 1 - 1e-9 for r in rows)
 
 
+def test_stretching(tmp_path):
+    rows, meta = _run(tmp_path, "stretching", "--tosca", "none", "--generated", "biped",
+                      "--base-vertices", "1000", "--landmarks", "50")
+    assert [r["variant"].split()[0] for r in rows] == ["x", "y", "z", "part"]
+    _finite(rows, "mean_error", "seconds")
+    # a moderately stretched copy of a mesh is matched back to itself closely
+    assert max(float(r["mean_error"]) for r in rows) < 0.05
+    assert meta["settings"]["factor"] == 1.5
+
+
 def test_no_data_is_reported(tmp_path):
     from geoshape.bench.experiments.reordering import run_experiment
 
@@ -105,7 +115,7 @@ def test_bad_options(tmp_path, capsys):
     assert main(["experiment", "scaling", "--out", str(tmp_path), "--no-results", "--ratios", "1.5"]) == 2
 
 
-@pytest.mark.parametrize("name", ["scaling", "gaussian-width", "switching", "reordering"])
+@pytest.mark.parametrize("name", ["scaling", "gaussian-width", "switching", "reordering", "stretching"])
 def test_help_lists_experiment(name, capsys):
     with pytest.raises(SystemExit):
         main(["experiment", name, "--help"])

@@ -26,4 +26,5 @@ EXPERIMENTS: list[tuple[str, str]] = [
     ("gaussian-width", "geoshape.bench.experiments.gaussian_width"),
     ("switching", "geoshape.bench.experiments.switching"),
     ("reordering", "geoshape.bench.experiments.reordering"),
+    ("stretching", "geoshape.bench.experiments.stretching"),
 ]
