@@ -248,7 +248,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
               n_samples=None, seed=0):
-    from geoshape.correspondence.orientation import patch_orientation_score
+    from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
     from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
 
@@ -260,16 +260,21 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     lb_k = min(lb_k, m1.n - 1, m2.n - 1)
     screen_k = min(screen_k, lb_k)
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
-    c1, c2 = m1.samples(screen_samples, seed), m2.samples(screen_samples, seed)
     s1, s2 = m1.samples(zoomout_samples, seed), m2.samples(zoomout_samples, seed)
+    # a farthest-point prefix is the shorter run itself (not so when every vertex was taken)
+    c1 = s1[:screen_samples] if screen_samples <= zoomout_samples < m1.n else m1.samples(screen_samples, seed)
+    c2 = s2[:screen_samples] if screen_samples <= zoomout_samples < m2.n else m2.samples(screen_samples, seed)
     timings["laplacian"] = time.perf_counter() - t
     # Large meshes: no step below touches every vertex until the final map — maps live on
     # the samples and orientation is judged on sample triples.
     large = max(m1.n, m2.n) > LARGE_MESH
 
+    normals = (outward_vertex_normals(m1.V, m1.F), outward_vertex_normals(m2.V, m2.F)) if large else None
+
     def orientation(p2p, rows):
         if large:
-            return patch_orientation_score(m1.V, m1.F, m2.V, m2.F, p2p, rows1=rows, seed=seed)
+            return patch_orientation_score(m1.V, m1.F, m2.V, m2.F, p2p, rows1=rows, seed=seed,
+                                           normals=normals)
         return orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
 
     # 1. screen every candidate alignment by a coarse ZoomOut on few samples: the thesis'

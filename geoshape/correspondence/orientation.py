@@ -35,9 +35,14 @@ def vertex_normals(V, F) -> np.ndarray:
     return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
 
 
+def outward_vertex_normals(V, F) -> np.ndarray:
+    """(n, 3) unit vertex normals pointing out of the enclosed volume, O(m)."""
+    return vertex_normals(V, F) * outward_sign(V, F)
+
+
 def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, radius: float = 0.1,
                             seed: int = 0, rows1: np.ndarray | None = None, max_neighbors: int = 400,
-                            ) -> float:
+                            normals=None) -> float:
     """Orientation agreement of mapped *patches*, robust to a noisy map.
 
     For up to ``n_samples`` seeded vertices ``i`` of mesh 1, a vertex ``j`` at Euclidean
@@ -51,7 +56,8 @@ def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, ra
 
     With ``rows1`` (vertex ids of mesh 1), ``p2p_12`` is given on those rows only
     (``p2p_12[t]`` is the image of ``rows1[t]``) and the triples are drawn among them: the
-    map never needs to be known at every vertex (large meshes).
+    map never needs to be known at every vertex (large meshes). ``normals`` may pass
+    ``(outward_vertex_normals(V1, F1), outward_vertex_normals(V2, F2))`` computed once.
 
     Notes
     -----
@@ -64,8 +70,8 @@ def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, ra
     rng = np.random.default_rng(seed)
     area1 = 0.5 * np.linalg.norm(_face_normals(V1, F1), axis=1).sum()
     r = radius * np.sqrt(area1)
-    N1 = vertex_normals(V1, F1) * outward_sign(V1, F1)
-    N2 = vertex_normals(V2, F2) * outward_sign(V2, F2)
+    N1, N2 = normals if normals is not None else (outward_vertex_normals(V1, F1),
+                                                   outward_vertex_normals(V2, F2))
     if rows1 is not None:  # work on the sampled rows: positions and normals of those only
         rows1 = np.asarray(rows1, dtype=np.int64)
         V1, N1 = V1[rows1], N1[rows1]
