@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from geoshape._options import check_choice
+    from geoshape.bench.experiments._common import machine_note
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors, plot_error_curves
     from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, correspond
@@ -184,8 +185,9 @@ def _run(args: argparse.Namespace) -> int:
                 else "symmetry-aware: per pair the better of direct and mirrored ground truth")
     text = (f"### 3D correspondence — {set_name}\n\nCommand: `{cmd}`. Errors: geodesic distance / √area on "
             f"the target, mean over pairs of the per-pair mean ({sym_note}); ≤ t: share of landmarks "
-            f"(direct, in parentheses symmetry-aware). Times: end to end per pair, one process.\n\n"
-            f"{table}\n{ratio}")
+            f"(direct, in parentheses symmetry-aware). Times: end to end per pair, one process "
+            f"({machine_note()}; a method and its peer ran in turn on each pair, under the same load)."
+            f"\n\n{table}\n{ratio}")
     print(text)
     plot = args.plot
     if plot is None and not args.no_results:
