@@ -25,6 +25,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("spectral", "geoshape.bench.spectral"),
     ("correspondence", "geoshape.bench.correspondence"),
     ("retrieval3d", "geoshape.bench.retrieval3d"),
+    ("evd", "geoshape.bench.evd"),
 ]
 
 
