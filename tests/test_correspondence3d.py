@@ -146,6 +146,18 @@ def test_large_mesh_mode_recovers_a_permuted_copy(monkeypatch):
     assert exact_share(c.p2p_12, inv) >= 0.99
 
 
+def test_reflected_copy_gets_the_orientation_preserving_map():
+    """Matching a figure to its mirror image: the identity reverses orientation, so the answer
+    is the left-right symmetry (each vertex lands where its reflected self is)."""
+    V, _, F = figure("biped")
+    V2, F2 = V * [-1, 1, 1], F[:, ::-1]
+    c = correspond(V, F, V2, F2)
+    assert c.details["orientation"] > 0.5
+    assert exact_share(c.p2p_12, np.arange(len(V))) < 0.2
+    assert np.median(np.linalg.norm(V2[c.p2p_12] - V, axis=1)) < 0.05 * np.ptp(V, axis=0).max()
+    assert isinstance(c.details["symmetry_completed"], bool)
+
+
 def test_bad_input_gives_clear_errors():
     V, _, F = figure()
     bad = V.copy()

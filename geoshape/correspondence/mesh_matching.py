@@ -247,7 +247,7 @@ LARGE_MESH = 8000
 def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_iterations=6,
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
-              n_samples=None, seed=0):
+              n_samples=None, seed=0, symmetry_completion=True, prefer="preserving"):
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
     from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
@@ -319,25 +319,55 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
             if all(first is not q for q in queue):
                 queue.append(first)
     screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1] if large else None
+
+    def refine(init, on_refinement_rows=False):
+        """ZoomOut screen_k → lb_k on the refinement samples; (map, energy, orientation)."""
+        if large:  # the samples' map: each refinement sample starts from its nearest screening sample
+            start = init if on_refinement_rows else init[screen_to_refine]
+            p2p, energy = zoomout(b1, b2, start, k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                                  samples1=s1, samples2=s2, return_energy=True, samples_only=True)
+        else:  # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
+            p2p, energy = zoomout(b1, b2, init, k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                                  samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
+        return p2p, energy, orientation(p2p, s1)
+
+    # r = (has the unwanted orientation, energy, map, candidate)
+    unwanted = (lambda o: o <= 0) if prefer == "preserving" else (lambda o: o > 0)
     refined = []
     while queue and len(refined) < max(n_refine, 1):
         c = queue.pop(0)
-        if large:  # the samples' map: each refinement sample starts from its nearest screening sample
-            p2p, energy = zoomout(b1, b2, c["p2p"][screen_to_refine], k_start=screen_k, k_end=lb_k,
-                                  step=zoomout_step, samples1=s1, samples2=s2, return_energy=True,
-                                  samples_only=True)
-        else:  # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
-            p2p, energy = zoomout(b1, b2, c["p2p"], k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                                  samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
-        orient = orientation(p2p, s1)
+        p2p, energy, orient = refine(c["p2p"])
         c.update(refined_energy=energy, refined_orientation=orient)
-        refined.append((orient <= 0, energy, p2p, c))
+        refined.append((unwanted(orient), energy, p2p, c))
         if not queue and all(r[0] for r in refined):
             rest = [x for x in ranked if "refined_energy" not in x]
             if rest:
-                queue.append(max(rest, key=lambda x: (x["orientation"], -x["zoomout_energy"])))
+                sign = 1.0 if prefer == "preserving" else -1.0
+                queue.append(max(rest, key=lambda x: (sign * x["orientation"], -x["zoomout_energy"])))
     timings["refinement"] = time.perf_counter() - t
+    # 3. symmetry completion: when a map of the unwanted orientation is more isometric than
+    #    every map of the wanted one, the wanted map is that map followed by the intrinsic
+    #    left-right symmetry of mesh 2 (mesh 2 matched to itself, orientation reversed).
+    details = {"large_mesh_mode": large, "symmetry_completed": False}
+    wrong = [r for r in refined if r[0]]
+    right = [r for r in refined if not r[0]]
+    if symmetry_completion and prefer == "preserving" and wrong and (
+            not right or min(r[1] for r in right) > min(r[1] for r in wrong)):
+        t = time.perf_counter()
+        mirror = _geoshape(m2, m2, k=k, reorder=reorder, n_keep=n_keep, n_refine=n_refine,
+                           icp_iterations=icp_iterations, n_controls=n_controls, lb_k=lb_k,
+                           screen_k=screen_k, screen_samples=screen_samples, zoomout_start=zoomout_start,
+                           zoomout_step=zoomout_step, zoomout_samples=zoomout_samples,
+                           n_samples=n_samples, seed=seed, prefer="reversing", symmetry_completion=False)
+        best_wrong = min(wrong, key=lambda r: r[1])
+        if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
+            p2p, energy, orient = refine(mirror.p2p_12[best_wrong[2]], on_refinement_rows=True)
+            completed = dict(best_wrong[3], refined_energy=energy, refined_orientation=orient,
+                             symmetry_completed=True)
+            refined.append((unwanted(orient), energy, p2p, completed))
+        timings["symmetry"] = time.perf_counter() - t
     _, energy, coarse, chosen = min(refined, key=lambda r: (r[0], r[1]))
+    details["symmetry_completed"] = bool(chosen.get("symmetry_completed", False))
     t = time.perf_counter()
     if large:
         C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k, rows1=s1)
@@ -346,7 +376,6 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
         C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
     p2p = full_resolution_map(b1, b2, C, coarse, m2.V)
     timings["full_resolution"] = time.perf_counter() - t
-    details = {"large_mesh_mode": large}
     keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
     alts = [{key: c[key] for key in keys if key in c} for c in ranked]
     if _DEBUG_KEEP_MAPS:
