@@ -10,7 +10,10 @@ Methods (``CORRESPONDENCE_METHODS``):
   by non-rigid TPS-ICP in the spectral domain and then by ZoomOut on the
   Laplace–Beltrami basis; the candidate whose mapped triangles keep their orientation
   (:mod:`~geoshape.correspondence.orientation`) and whose functional map is closest to
-  an isometry wins.
+  an isometry wins. When a mirrored map is more isometric than every direct one, the
+  mirrored map followed by mesh 2's own left-right symmetry (mesh 2 matched to itself)
+  is tried as well ("symmetry completion"). Above 8000 vertices the intermediate maps
+  live on samples only (large-mesh mode).
 - ``jz``: the thesis pipeline, faithfully: geodesic Gaussian affinity (σ = max
   geodesic), k = 6 eigenvectors scaled by √λ with the first dropped (5-D), exhaustive
   reordering and sign correction, TPS non-rigid ICP, proximity-aided matching with 3
@@ -425,7 +428,8 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
     **options
         Method options, e.g. ``k``, ``reorder`` ({"exhaustive", "greedy", "pairwise"}),
         ``icp_iterations``, ``anchors``, ``bijective``, ``scaling``, ``sigma`` (jz), ``lb_k``,
-        ``n_keep`` (geoshape),
+        ``n_keep``, ``n_refine``, ``screen_samples``, ``zoomout_samples``,
+        ``symmetry_completion`` (geoshape),
         ``n_samples`` (Nyström samples), ``seed``.
     blas_threads : int or None
         BLAS threads while computing (default 1). The pipeline makes many small and
@@ -447,7 +451,9 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
     -----
     ``geoshape`` on two 5k-vertex meshes: two Nyström embeddings O(l n log n), the
     exhaustive reordering O(k! 2^k s^2) on s = 300 samples, n_keep × (TPS-ICP O(c^3) +
-    ZoomOut O(iter · s^2 k)), two Laplacian eigenproblems; measured times are in
+    ZoomOut O(iter · s^2 k)), two Laplacian eigenproblems, a final map O(n1 n2 k)
+    (O(n1 c k) with c = 64 spatial candidates above 8000 vertices); symmetry completion
+    adds one screening and refinement of mesh 2 against itself. Measured times are in
     docs/RESULTS.md (``geoshape bench correspondence``).
     """
     check_choice("correspondence method", method, CORRESPONDENCE_METHODS)
