@@ -182,6 +182,8 @@ def run(args) -> int:
 
 
 def _section(state, args, stamp, workers, machine) -> str:
+    from geoshape.bench.experiments._common import machine_note
+
     from geoshape.bench.results import markdown_table
 
     header = ["set", "descriptor", "domain", "affinity", "NN", "FT", "ST", "E", "DCG", "mAP",
@@ -197,8 +199,7 @@ def _section(state, args, stamp, workers, machine) -> str:
         f"instances={args.gen_instances}, poses={args.gen_poses}, seed=7, target_vertices=1500, "
         "resolution=80)`. 's / mesh' is the mean descriptor compute time per mesh in one worker "
         "(single BLAS thread, file reading excluded; for evd_ccd: EVD + CCD); 'total s' is the "
-        "wall time of descriptors + matrix (+ re-ranking). Timings were taken on a 2-core machine "
-        "shared with other jobs (load average 6–8): upper bounds.",
+        f"wall time of descriptors + matrix (+ re-ranking). Load: {machine_note()}.",
         "",
         "Domains: `original` = descriptor on the mesh, `embedding` = on the 3D spectral embedding "
         "(2nd–4th √λ-scaled eigenvectors, same faces), `spectral` = EVD/CCD themselves.",
