@@ -183,7 +183,6 @@ def run(args) -> int:
 
 def _section(state, args, stamp, workers, machine) -> str:
     from geoshape.bench.experiments._common import machine_note
-
     from geoshape.bench.results import markdown_table
 
     header = ["set", "descriptor", "domain", "affinity", "NN", "FT", "ST", "E", "DCG", "mAP",
