@@ -12,8 +12,8 @@ import time
 import numpy as np
 import pytest
 
-from geoshape.retrieval.index import ShapeIndex
 from geoshape.retrieval.descriptors import descriptor_params
+from geoshape.retrieval.index import ShapeIndex
 
 
 def _write_meshes(folder, n: int, seed: int = 0):

@@ -71,7 +71,7 @@ def mesh_samples(V, F, n_samples: int) -> dict:
             "area": float(vertex_area.sum())}
 
 
-def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> "np.ndarray":  # noqa: F821
+def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:  # noqa: F821
     """The EVD of one mesh for one setting, from :func:`mesh_samples` output."""
     import numpy as np
     from scipy.linalg import eigh

@@ -17,8 +17,9 @@ On the 3D spectral embedding (thesis Fig. 4.10)
 Spectral
     ``evd``: √ of the first 20 eigenvalues of the Nyström sample affinity, χ²
     (:mod:`geoshape.spectral.evd`) — by default the area-weighted "quadrature"
-    configuration; ``evd_thesis`` is the thesis' own (60 unweighted samples, sigma = max). ``ccd``: the correspondence cost descriptor — the
-    5-D embedding itself, subsampled to ``CCD_POINTS`` farthest points in embedding space;
+    configuration; ``evd_thesis`` is the thesis' own (60 unweighted samples, sigma = max).
+    ``ccd``: the correspondence cost descriptor — the 5-D embedding itself, subsampled to
+    ``CCD_POINTS`` farthest points in embedding space;
     two are compared by :func:`ccd_distance` (best match after aligning the eigenvectors).
 
 The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
