@@ -193,7 +193,9 @@ def _section(state, args, stamp, workers, machine) -> str:
         f"## 3D retrieval (descriptors on meshes and on spectral embeddings): {args.section}",
         "",
         f"Command: `geoshape bench retrieval3d --sets {args.sets} --affinities {args.affinities}"
-        f"{' --descriptors ' + args.descriptors if args.descriptors else ''} --section {args.section}` "
+        f"{' --descriptors ' + args.descriptors if args.descriptors else ''}"
+        f"{f' --index-rows {args.index_rows}' if args.index_rows != 10000 else ''}"
+        f"{f' --hires {args.hires}' if args.hires != 3 else ''} --section {args.section}` "
         f"({stamp}, {workers} workers, {machine}). Generated set: `write_collection(classes=CLASSES, "
         f"instances={args.gen_instances}, poses={args.gen_poses}, seed=7, target_vertices=1500, "
         "resolution=80)`. 's / mesh' is the mean descriptor compute time per mesh in one worker "
