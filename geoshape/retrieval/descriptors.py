@@ -31,6 +31,7 @@ The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -305,16 +306,13 @@ class DescriptorSpec:
         return self.domain in ("embedding", "spectral")
 
 
-def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0):
+def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0, config="quadrature"):
     from geoshape.spectral.evd import evd_descriptor
 
-    return evd_descriptor(V, F, config="quadrature", affinity=affinity, seed=seed)
+    return evd_descriptor(V, F, config=config, affinity=affinity, seed=seed)
 
 
-def _evd_thesis(V, F, *, affinity=DEFAULT_AFFINITY, seed=0):
-    from geoshape.spectral.evd import evd_descriptor
-
-    return evd_descriptor(V, F, config="thesis", affinity=affinity, seed=seed)
+_evd_thesis = functools.partial(_evd, config="thesis")
 
 
 def _shd(V, F, *, seed=0):

@@ -243,3 +243,25 @@ def one_blas_thread(fn):
             return fn(*args, **kwargs)
 
     return wrapper
+
+
+def publish(out_dir, name: str, rows: list[dict], meta: dict, markdown, plot=None, *,
+            results: bool = True, results_path=None) -> list[dict]:
+    """Write ``DIR/<name>.{csv,json}`` (and ``.png`` with ``plot(rows, path)``), then the
+    ``experiment-<name>`` section of docs/RESULTS.md from ``markdown(rows, meta)``."""
+    write_table(out_dir, name, rows, meta)
+    if plot is not None:
+        plot(rows, Path(out_dir) / f"{name}.png")
+    if results:
+        from geoshape.bench.results import update_results_section
+
+        update_results_section(f"experiment-{name}", markdown(rows, meta), results_path)
+    return rows
+
+
+def best_error(row: dict) -> float:
+    """Symmetry-aware error where a mirrored truth exists, else the direct error."""
+    import math
+
+    v = row["mean_error_sym_aware"]
+    return v if isinstance(v, float) and math.isfinite(v) else row["mean_error"]

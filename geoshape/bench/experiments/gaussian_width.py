@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.bench.experiments._common import best_error as _best
 from geoshape.bench.experiments._common import one_blas_thread as _one_blas_thread
 
 HELP = "Gaussian width: error vs sigma = rho x mean geodesic distance with 10/20/50 spikes (Fig. 4.14)"
@@ -146,23 +147,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
                          "base_vertices": base_vertices, "spikes": list(spikes), "rhos": list(rhos),
                          "height": height, "landmarks": landmarks, "repeats": repeats,
                          "seed": seed, "method": "jz"}}
-    from pathlib import Path
-
-    c.write_table(out_dir, NAME, rows, meta)
-    _plot(rows, Path(out_dir) / f"{NAME}.png")
-    if results:
-        from geoshape.bench.results import update_results_section
-
-        update_results_section(f"experiment-{NAME}", _markdown(rows, meta), results_path)
-    return rows
-
-
-def _best(r) -> float:
-    """Symmetry-aware error where a mirrored truth exists, else the direct error."""
-    import math
-
-    v = r["mean_error_sym_aware"]
-    return v if isinstance(v, float) and math.isfinite(v) else r["mean_error"]
+    return c.publish(out_dir, NAME, rows, meta, _markdown, _plot, results=results,
+                     results_path=results_path)
 
 
 def _aggregate(rows):

@@ -180,15 +180,9 @@ def run_experiment(out_dir, *, generated=GENERATED, generated_vertices: int = GE
             "settings": {"generated": list(c.names(generated)), "generated_vertices": generated_vertices,
                          "tosca_pairs": tosca_pairs, "k": k, "methods": list(methods), "seed": seed,
                          "max_points": 200}}
-    from pathlib import Path
 
-    c.write_table(out_dir, NAME, rows, meta)
-    _plot(rows, Path(out_dir) / f"{NAME}.png")
-    if results:
-        from geoshape.bench.results import update_results_section
-
-        update_results_section(f"experiment-{NAME}", _markdown(rows, meta), results_path)
-    return rows
+    return c.publish(out_dir, NAME, rows, meta, _markdown, _plot, results=results,
+                     results_path=results_path)
 
 
 def _summary(rows):

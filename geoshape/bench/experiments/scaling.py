@@ -133,15 +133,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
             "settings": {"tosca": list(c.names(tosca)), "generated": list(c.names(generated)),
                          "base_vertices": base_vertices, "ratios": list(ratios), "scalings": list(scalings),
                          "landmarks": landmarks, "seed": seed, "method": "jz"}}
-    from pathlib import Path
-
-    c.write_table(out_dir, NAME, rows, meta)
-    _plot(rows, Path(out_dir) / f"{NAME}.png")
-    if results:
-        from geoshape.bench.results import update_results_section
-
-        update_results_section(f"experiment-{NAME}", _markdown(rows, meta), results_path)
-    return rows
+    return c.publish(out_dir, NAME, rows, meta, _markdown, _plot, results=results,
+                     results_path=results_path)
 
 
 def _plot(rows, path):

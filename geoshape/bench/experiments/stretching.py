@@ -104,7 +104,6 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices=B
     Time: per run one correspondence (about 6 s for a 5k-vertex pair with the default
     method) and ``landmarks`` exact geodesics. Defaults: 9 meshes x 4 variants = 36 runs.
     """
-    from pathlib import Path
 
     import numpy as np
 
@@ -149,26 +148,15 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices=B
             "settings": {"tosca": list(c.names(tosca)), "generated": list(c.names(generated)),
                          "base_vertices": base_vertices, "factor": factor, "part_radius": part_radius,
                          "methods": list(methods), "landmarks": landmarks, "seed": seed}}
-    c.write_table(out_dir, NAME, rows, meta)
-    _plot(rows, Path(out_dir) / f"{NAME}.png")
-    if results:
-        from geoshape.bench.results import update_results_section
-
-        update_results_section(f"experiment-{NAME}", _markdown(rows, meta), results_path)
-    return rows
-
-
-def _best(r) -> float:
-    import numpy as np
-
-    return r["mean_error_sym_aware"] if np.isfinite(r["mean_error_sym_aware"]) else r["mean_error"]
+    return c.publish(out_dir, NAME, rows, meta, _markdown, _plot, results=results,
+                     results_path=results_path)
 
 
 def _plot(rows, path):
     import numpy as np
     from matplotlib.figure import Figure
 
-    from geoshape.bench.experiments._common import save_figure
+    from geoshape.bench.experiments._common import best_error, save_figure
 
     fig = Figure(figsize=(10, 4))
     ax = fig.add_subplot(1, 1, 1)
@@ -181,7 +169,7 @@ def _plot(rows, path):
         for mesh in meshes:
             sub = [r for r in rows if r["mesh"] == mesh and r["method"] == method
                    and r["variant"].startswith(kind)]
-            vals.append(_best(sub[0]) if sub else np.nan)
+            vals.append(best_error(sub[0]) if sub else np.nan)
         ax.bar(np.arange(len(meshes)) + (i - (len(kinds) * len(methods) - 1) / 2) * width, vals, width,
                label=f"{kind} ({method})")
     ax.axhline(0.05, color="k", lw=0.8, ls="--")

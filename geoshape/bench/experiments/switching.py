@@ -232,12 +232,7 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
     if plot:
         _plot(tiles, k, Path(out_dir) / f"{NAME}.png")
     meta["seconds_total"] = watch()
-    c.write_table(out_dir, NAME, rows, meta)
-    if results:
-        from geoshape.bench.results import update_results_section
-
-        update_results_section(f"experiment-{NAME}", _markdown(rows, meta), results_path)
-    return rows
+    return c.publish(out_dir, NAME, rows, meta, _markdown, results=results, results_path=results_path)
 
 
 def _display_frame(V):
