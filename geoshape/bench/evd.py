@@ -65,7 +65,8 @@ def mesh_samples(V, F, n_samples: int) -> dict:
     samples, owner, _ = geodesic_voronoi_sampling(graph, n_samples)
     rows = dijkstra(graph, directed=True, indices=samples)
     vertex_area = _vertex_areas(V, F)
-    return {"D": 0.5 * (rows[:, samples] + rows[:, samples].T), "rows_mean": float(rows.mean()),
+    block = rows[:, samples]
+    return {"D": 0.5 * (block + block.T), "rows_mean": float(rows.mean()),
             "rows_max": float(rows.max()), "cells": np.bincount(owner, weights=vertex_area,
                                                                 minlength=n_samples),
             "area": float(vertex_area.sum())}
@@ -74,7 +75,8 @@ def mesh_samples(V, F, n_samples: int) -> dict:
 def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:  # noqa: F821
     """The EVD of one mesh for one setting, from :func:`mesh_samples` output."""
     import numpy as np
-    from scipy.linalg import eigh
+
+    from geoshape.spectral.evd import affinity_spectrum
 
     D = s["D"][:l, :l]
     kind, rho = parse_width(width)
@@ -85,13 +87,11 @@ def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:
     else:
         sigma = rho * np.sqrt(s["area"])
     K = np.exp(-(D**2) / (2.0 * sigma * sigma))
+    w = None
     if weighted:
         owner = np.concatenate([np.arange(l), s["D"][l:, :l].argmin(axis=1)])
         w = np.bincount(owner, weights=s["cells"], minlength=l)
-        sw = np.sqrt(w / w.sum())
-        K = sw[:, None] * K * sw[None, :]
-    lam = eigh(K, eigvals_only=True)[::-1][:N_EIGENVALUES]
-    return np.sqrt(np.abs(lam))
+    return affinity_spectrum(K, w, N_EIGENVALUES)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -96,8 +96,9 @@ def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, ra
     cross = np.cross((V1[j] - xi)[:, None, :], V1[nbrs] - xi[:, None, :])
     vol = np.einsum("skc,sc->sk", cross, N1[centers])
     vol = np.where(in_ring, vol, 0.0)
-    l = nbrs[rows, np.argmax(np.abs(vol), axis=1)]
-    s1 = np.sign(vol[rows, np.argmax(np.abs(vol), axis=1)])
+    widest = np.argmax(np.abs(vol), axis=1)
+    l = nbrs[rows, widest]
+    s1 = np.sign(vol[rows, widest])
     a, b, c = V2[p2p[centers]], V2[p2p[j]], V2[p2p[l]]
     s2 = np.sign(np.einsum("ij,ij->i", np.cross(b - a, c - a), N2[p2p[centers]]))
     votes = s1 * s2

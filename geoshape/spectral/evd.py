@@ -27,8 +27,8 @@ import numpy as np
 from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
 
-__all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "evd_descriptor", "chi2_distance",
-           "evd_distance_matrix"]
+__all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "evd_descriptor", "affinity_spectrum",
+           "chi2_distance", "evd_distance_matrix"]
 
 EVD_N_EIGENVALUES = 20
 #: samples per shape of the default configuration; keep it fixed across a collection
@@ -87,8 +87,6 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     with graph geodesics: sampling about O(n log n) plus l rows cut at 6 sigma (a few
     percent of the surface each), then O(l^3); memory O(n + l^2).
     """
-    from scipy.linalg import eigh
-
     from geoshape._options import check_choice
 
     V, F = check_mesh(V, F, allow_no_faces=True)
@@ -128,8 +126,16 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     else:
         K, w = _sample_block(V, F, n_samples, affinity, sigma, width,
                              vertex_area if weighting == "area" else None, geodesics, p, seed)
-    if w is not None:
-        sw = np.sqrt(w / w.sum())
+    return affinity_spectrum(K, w, n_eigenvalues)
+
+
+def affinity_spectrum(K: np.ndarray, weights: np.ndarray | None, n_eigenvalues: int) -> np.ndarray:
+    """``sqrt(|λ|)`` of the top eigenvalues of ``W^½ K W^½`` (``W`` = weights / their sum),
+    or of ``K`` itself when ``weights`` is None. ``K (l, l)``; O(l^3)."""
+    from scipy.linalg import eigh
+
+    if weights is not None:
+        sw = np.sqrt(weights / weights.sum())
         K = sw[:, None] * K * sw[None, :]
     lam = eigh(0.5 * (K + K.T), eigvals_only=True)[::-1][:n_eigenvalues]
     return np.sqrt(np.abs(lam))
@@ -145,7 +151,7 @@ def _quadrature_block(V, F, n_samples, width, vertex_area, p, seed):
     graph = structural_graph(V, F, p)
     samples, owner, _ = geodesic_voronoi_sampling(graph, n_samples, seed=seed)
     D = dijkstra(graph, directed=True, indices=samples, limit=CUTOFF_SIGMAS * width)[:, samples]
-    K = np.exp(-(np.where(np.isfinite(D), D, np.inf) ** 2) / (2.0 * width * width))
+    K = np.exp(-(D**2) / (2.0 * width * width))  # rows cut at the limit are inf: affinity 0
     return K, np.bincount(owner, weights=vertex_area, minlength=n_samples)
 
 
