@@ -293,16 +293,11 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
         warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=icp_iterations, controls=controls, seed=seed,
                                return_transform=True)
         init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
-        if large:
-            coarse, energy = zoomout(b1, b2, init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
-                                     step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
-                                     samples_only=True)
-        else:
-            full_init = np.zeros(m1.n, np.int64)
-            full_init[c1] = init
-            coarse, energy = zoomout(b1, b2, full_init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
-                                     step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
-                                     final_on_samples=True)
+        # large meshes keep the map on the samples; otherwise every vertex of mesh 1 is
+        # mapped onto the samples of mesh 2
+        coarse, energy = zoomout(b1, b2, init, k_start=min(zoomout_start, screen_k), k_end=screen_k,
+                                 step=zoomout_step, samples1=c1, samples2=c2, return_energy=True,
+                                 samples_only=large, final_on_samples=not large)
         candidates.append({"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": energy,
                            "orientation": orientation(coarse, c1), "p2p": coarse, "alignment": a})
     timings["screening"] = time.perf_counter() - t
@@ -325,14 +320,16 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1] if large else None
 
     def refine(init, on_refinement_rows=False):
-        """ZoomOut screen_k → lb_k on the refinement samples; (map, energy, orientation)."""
-        if large:  # the samples' map: each refinement sample starts from its nearest screening sample
-            start = init if on_refinement_rows else init[screen_to_refine]
-            p2p, energy = zoomout(b1, b2, start, k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                                  samples1=s1, samples2=s2, return_energy=True, samples_only=True)
-        else:  # every vertex of mesh 1 onto the samples of mesh 2: enough to judge orientation
-            p2p, energy = zoomout(b1, b2, init, k_start=screen_k, k_end=lb_k, step=zoomout_step,
-                                  samples1=s1, samples2=s2, return_energy=True, final_on_samples=True)
+        """ZoomOut screen_k → lb_k on the refinement samples; (map, energy, orientation).
+
+        Large meshes: the samples' map, each refinement sample starting from its nearest
+        screening sample. Otherwise every vertex of mesh 1 onto the samples of mesh 2,
+        enough to judge orientation.
+        """
+        start = init[screen_to_refine] if large and not on_refinement_rows else init
+        p2p, energy = zoomout(b1, b2, start, k_start=screen_k, k_end=lb_k, step=zoomout_step,
+                              samples1=s1, samples2=s2, return_energy=True, samples_only=large,
+                              final_on_samples=not large)
         return p2p, energy, orientation(p2p, s1)
 
     # r = (has the unwanted orientation, energy, map, candidate)

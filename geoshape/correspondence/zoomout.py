@@ -93,8 +93,8 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     ----------
     basis1, basis2 : LaplacianBasis
         With at least ``k_end`` eigenpairs each.
-    p2p_12 : (n1,) int
-        Initial map, for every vertex of mesh 1.
+    p2p_12 : (n1,) or (len(samples1),) int
+        Initial map, for every vertex of mesh 1 or for ``samples1`` only.
     samples1, samples2 : int arrays, optional
         Vertex subsets on which the iterations run (e.g. 2000 farthest points each).
     V2 : (n2, 3) float, optional
@@ -106,7 +106,7 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     samples_only : bool
         Return the map of ``samples1`` only (aligned with it), onto ``samples2``: no step
         touches every vertex (large meshes). ``p2p_12`` may then be given on ``samples1``
-        only, too (length ``len(samples1)``).
+        only.
     return_energy : bool
         Also return the off-diagonal energy of the final functional map, a measure of
         how far it is from an isometry (lower is better; comparable between candidate
@@ -126,7 +126,9 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     rows2 = None if samples2 is None else np.asarray(samples2, dtype=np.int64)
     if samples_only and (rows1 is None or rows2 is None):
         raise InvalidOptionError("samples_only needs samples1 and samples2")
-    sub = p2p if rows1 is None or (samples_only and len(p2p) == len(rows1)) else p2p[rows1]
+    # a map given on samples1 only (aligned with it) or on every vertex of mesh 1; the two
+    # coincide when samples1 holds every vertex (then it is arange: see embedding_samples)
+    sub = p2p if rows1 is None or len(p2p) == len(rows1) else p2p[rows1]
     ks = list(range(k_start, k_end + 1, step))
     if ks[-1] != k_end:
         ks.append(k_end)
