@@ -2,8 +2,10 @@
 
 Low dimensions (d <= 8) use a KD-tree (:mod:`geoshape.geometry.knn`, SciPy or Open3D);
 higher dimensions, where KD-trees degrade to brute force anyway, use blocked BLAS
-distance computations: ``|x|² - 2 x·y + |y|²`` in blocks of queries, O(q n d) time,
-O(block n) memory.
+distance computations: ``|y|² - 2 x·y`` in blocks of queries, O(q n d) time,
+O(block n) memory. The block products run in single precision (twice the BLAS speed,
+half the memory traffic; the nearest point changes only between near-ties); the
+returned distances are recomputed in double precision.
 """
 
 from __future__ import annotations
@@ -33,17 +35,15 @@ def nearest(points: np.ndarray, queries: np.ndarray, *, backend: str = "auto",
     queries = np.ascontiguousarray(queries, dtype=np.float64)
     if points.shape[1] <= KD_TREE_MAX_DIM:
         return KNNIndex(points, backend).query(queries, k=1)
-    sq_p = np.einsum("ij,ij->i", points, points)
+    points32 = points.astype(np.float32)
+    sq_p = np.einsum("ij,ij->i", points32, points32)
     idx = np.empty(len(queries), np.int64)
-    dist = np.empty(len(queries))
     for s in range(0, len(queries), block):
-        Q = queries[s : s + block]
-        d2 = sq_p[None, :] - 2.0 * (Q @ points.T)
-        j = d2.argmin(axis=1)
-        idx[s : s + block] = j
-        dist[s : s + block] = np.sqrt(
-            np.maximum(d2[np.arange(len(Q)), j] + np.einsum("ij,ij->i", Q, Q), 0.0)
-        )
+        d2 = queries[s : s + block].astype(np.float32) @ points32.T
+        d2 *= -2.0
+        d2 += sq_p[None, :]
+        idx[s : s + block] = d2.argmin(axis=1)
+    dist = np.linalg.norm(queries - points[idx], axis=1)
     return dist, idx
 
 
