@@ -12,8 +12,11 @@ Methods (``CORRESPONDENCE_METHODS``):
   (:mod:`~geoshape.correspondence.orientation`) and whose functional map is closest to
   an isometry wins. When a mirrored map is more isometric than every direct one, the
   mirrored map followed by mesh 2's own left-right symmetry (mesh 2 matched to itself)
-  is tried as well ("symmetry completion"). Above 8000 vertices the intermediate maps
-  live on samples only (large-mesh mode).
+  is tried as well ("symmetry completion"). One more candidate comes from wave kernel
+  signatures with an orientation-preserving term
+  (:mod:`~geoshape.correspondence.descriptor_fmap`), which tells front from back where
+  the low eigenvectors cannot. Above 8000 vertices the intermediate maps live on samples
+  only (large-mesh mode).
 - ``jz``: the thesis pipeline, faithfully: geodesic Gaussian affinity (σ = max
   geodesic), k = 6 eigenvectors scaled by √λ with the first dropped (5-D), exhaustive
   reordering and sign correction, TPS non-rigid ICP, proximity-aided matching with 3
@@ -133,6 +136,13 @@ class PreparedMesh:
             return self._cache[min(best)]
         return self.cached(("laplacian", k), lambda: laplacian_basis(self.V, self.F, k, name=self.name))
 
+    def descriptor_operators(self, k: int, lb_k: int):
+        """Wave kernel signature operators in the first ``k`` of ``lb_k`` eigenvectors, cached."""
+        from geoshape.correspondence.descriptor_fmap import descriptor_operators
+
+        return self.cached(("descriptor_operators", k, lb_k), lambda: descriptor_operators(
+            self.V, self.F, self.laplacian(lb_k), k=k))
+
     def samples(self, n: int, seed: int = 0):
         """``n`` farthest-point samples in Euclidean space (O(n_vertices · n)), cached."""
         from geoshape.correspondence.reorder import embedding_samples
@@ -251,7 +261,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
               n_samples=None, seed=0, symmetry_completion=True, symmetry_ratio=1.25,
-              prefer="preserving"):
+              prefer="preserving", descriptor_map=True, descriptor_k=30):
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
     from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
@@ -319,15 +329,15 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
                 queue.append(first)
     screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1] if large else None
 
-    def refine(init, on_refinement_rows=False):
-        """ZoomOut screen_k → lb_k on the refinement samples; (map, energy, orientation).
+    def refine(init, on_refinement_rows=False, k_start=screen_k):
+        """ZoomOut k_start → lb_k on the refinement samples; (map, energy, orientation).
 
         Large meshes: the samples' map, each refinement sample starting from its nearest
         screening sample. Otherwise every vertex of mesh 1 onto the samples of mesh 2,
         enough to judge orientation.
         """
         start = init[screen_to_refine] if large and not on_refinement_rows else init
-        p2p, energy = zoomout(b1, b2, start, k_start=screen_k, k_end=lb_k, step=zoomout_step,
+        p2p, energy = zoomout(b1, b2, start, k_start=k_start, k_end=lb_k, step=zoomout_step,
                               samples1=s1, samples2=s2, return_energy=True, samples_only=large,
                               final_on_samples=not large)
         return p2p, energy, orientation(p2p, s1)
@@ -346,6 +356,23 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
                 sign = 1.0 if prefer == "preserving" else -1.0
                 queue.append(max(rest, key=lambda x: (sign * x["orientation"], -x["zoomout_energy"])))
     timings["refinement"] = time.perf_counter() - t
+    # 2b. an independent candidate from wave kernel signatures with an orientation term
+    #     (descriptor_fmap): low eigenvectors of a body do not tell front from back, and
+    #     the front-back mirror composed with the left-right one keeps orientation
+    if descriptor_map and min(descriptor_k, lb_k) >= 3:
+        from geoshape.correspondence.descriptor_fmap import descriptor_functional_map
+        from geoshape.correspondence.zoomout import p2p_from_functional_map
+
+        t = time.perf_counter()
+        kd = min(descriptor_k, lb_k)
+        C = descriptor_functional_map(m1.descriptor_operators(kd, lb_k), m2.descriptor_operators(kd, lb_k),
+                                      orientation="preserving" if prefer == "preserving" else "reversing")
+        init = p2p_from_functional_map(b1, b2, C, rows1=s1 if large else None, rows2=s2)
+        p2p, energy, orient = refine(init, on_refinement_rows=True, k_start=kd)
+        c = {"source": "descriptors", "perm": None, "signs": None, "alignment": None,
+             "refined_energy": energy, "refined_orientation": orient}
+        refined.append((unwanted(orient), energy, p2p, c))
+        timings["descriptor_map"] = time.perf_counter() - t
     # 3. symmetry completion: when a map of the unwanted orientation is clearly more
     #    isometric than every map of the wanted one (energy ratio above symmetry_ratio),
     #    the wanted map is that map followed by the intrinsic left-right symmetry of mesh 2
@@ -362,7 +389,8 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
                            icp_iterations=icp_iterations, n_controls=n_controls, lb_k=lb_k,
                            screen_k=screen_k, screen_samples=screen_samples, zoomout_start=zoomout_start,
                            zoomout_step=zoomout_step, zoomout_samples=zoomout_samples,
-                           n_samples=n_samples, seed=seed, prefer="reversing", symmetry_completion=False)
+                           n_samples=n_samples, seed=seed, prefer="reversing", symmetry_completion=False,
+                           descriptor_map=descriptor_map, descriptor_k=descriptor_k)
         best_wrong = min(wrong, key=lambda r: r[1])
         if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
             p2p, energy, orient = refine(mirror.p2p_12[best_wrong[2]], on_refinement_rows=True)
@@ -372,6 +400,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
         timings["symmetry"] = time.perf_counter() - t
     _, energy, coarse, chosen = min(refined, key=lambda r: (r[0], r[1]))
     details["symmetry_completed"] = bool(chosen.get("symmetry_completed", False))
+    details["source"] = chosen.get("source", "spectral")
     t = time.perf_counter()
     if large:
         C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k, rows1=s1)
@@ -382,11 +411,14 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     timings["full_resolution"] = time.perf_counter() - t
     keys = ("perm", "signs", "cost", "zoomout_energy", "orientation", "refined_energy", "refined_orientation")
     alts = [{key: c[key] for key in keys if key in c} for c in ranked]
+    alts += [dict(source="descriptors", refined_energy=r[3]["refined_energy"],
+                  refined_orientation=r[3]["refined_orientation"])
+             for r in refined if r[3].get("source") == "descriptors"]
     if _DEBUG_KEEP_MAPS:
         for a, c in zip(alts, ranked, strict=True):
             a["p2p"] = c["p2p"]
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
-    return Correspondence(p2p, energy, "geoshape", chosen["alignment"], alts, timings, details)
+    return Correspondence(p2p, energy, "geoshape", chosen.get("alignment"), alts, timings, details)
 
 
 def _shapiro_brady(m1, m2, *, scaling, name, k=5, n_samples=None, seed=0):
@@ -430,7 +462,8 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         Method options, e.g. ``k``, ``reorder`` ({"exhaustive", "greedy", "pairwise"}),
         ``icp_iterations``, ``anchors``, ``bijective``, ``scaling``, ``sigma`` (jz), ``lb_k``,
         ``n_keep``, ``n_refine``, ``screen_samples``, ``zoomout_samples``,
-        ``symmetry_completion``, ``symmetry_ratio`` (geoshape),
+        ``symmetry_completion``, ``symmetry_ratio``, ``descriptor_map``, ``descriptor_k``
+        (geoshape),
         ``n_samples`` (Nyström samples), ``seed``.
     blas_threads : int or None
         BLAS threads while computing (default 1). The pipeline makes many small and
