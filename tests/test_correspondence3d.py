@@ -38,6 +38,9 @@ def test_permuted_copy_is_recovered():
     c = correspond(V, F, V2, F2)
     assert exact_share(c.p2p_12, inv) >= 0.99
     assert c.details["orientation"] > 0.5
+    assert c.details["source"] in ("spectral", "descriptors")
+    alone = correspond(V, F, V2, F2, descriptor_map=False)  # the spectral candidates alone
+    assert exact_share(alone.p2p_12, inv) >= 0.99 and alone.details["source"] == "spectral"
 
 
 @pytest.mark.parametrize("method", ["geoshape", "jz"])
