@@ -96,3 +96,16 @@ def test_bad_options_are_reported():
         descriptor_functional_map(ops, descriptor_operators(V, F, basis, k=12))
     with pytest.raises(InvalidOptionError, match="eigenpairs"):
         descriptor_operators(V, F, basis, k=41)
+
+
+def test_a_sphere_has_free_directions_but_still_gets_a_map():
+    """Constant descriptors and degenerate eigenspaces leave the energy flat along many
+    directions; the ridge keeps the solve definite instead of failing."""
+    from conftest import icosphere
+
+    V, F = icosphere(1)
+    basis = laplacian_basis(V, F, 41)
+    ops = descriptor_operators(V, F, basis, k=30)
+    C = descriptor_functional_map(ops, ops)
+    assert np.isfinite(C).all()
+    assert C[0, 0] == pytest.approx(1.0, abs=1e-3)  # constants map to constants

@@ -39,6 +39,8 @@ __all__ = ["wave_kernel_signature", "multiplication_operators", "orientation_ope
 
 #: default weights of the energy terms (descriptors, Laplacian, multiplication, orientation)
 WEIGHTS = {"descriptors": 1.0, "laplacian": 0.1, "multiplication": 1.0, "orientation": 1.0}
+#: relative ridge added to the normal equations
+RIDGE = 1e-9
 
 
 def wave_kernel_signature(basis: LaplacianBasis, n_energies: int = 100, *,
@@ -256,4 +258,7 @@ def descriptor_functional_map(ops1: DescriptorOperators, ops2: DescriptorOperato
         O1 = -ops1.orientation if orientation == "reversing" else ops1.orientation
         H_orient = _commutator_normal_matrix(ops2.orientation, O1)
         H += w["orientation"] / _mean_curvature(H_orient) * H_orient
+    # a tiny ridge keeps the system definite where the terms leave directions free (a
+    # sphere: constant descriptors, degenerate eigenspaces); it picks the least-norm C there
+    H[np.diag_indices_from(H)] += RIDGE * _mean_curvature(H)
     return solve(H, g, assume_a="pos").reshape(k, k, order="F")
