@@ -25,6 +25,7 @@ def test_bench_evd_writes_the_settings_table(tmp_path, monkeypatch, capsys):
     assert len(rows) == 2 * 2 * 2  # samples x widths x weightings
     # two very different classes: every setting ranks a same-class pose first
     assert all(float(r.split("|")[4]) == 1.0 for r in rows)
+    assert "First tier per class" in text and "- best scale-invariant row" in text
 
 
 def test_weighted_settings_match_the_library_descriptor():
@@ -34,16 +35,18 @@ def test_weighted_settings_match_the_library_descriptor():
     from geoshape.spectral import evd
 
     m = trimesh.creation.icosphere(3)
-    cache = mesh_samples(m.vertices, m.faces, 80)
-    ours = evd_from_samples(cache, 80, "area:0.1", weighted=True)
-    library = evd.evd_descriptor(m.vertices, m.faces, n_samples=80)
-    # the library cuts rows at 6 sigma (affinities below 1e-7): equal to that precision
-    assert np.allclose(ours, library, atol=1e-6)
+    cache = mesh_samples(m.vertices, m.faces, 80, prefixes=(50, 80))
+    for l in (50, 80):  # a prefix gets the exact Voronoi cells of its own samples
+        ours = evd_from_samples(cache, l, "area:0.1", weighted=True)
+        library = evd.evd_descriptor(m.vertices, m.faces, n_samples=l)
+        # the library cuts rows at 6 sigma (affinities below 1e-7): equal to that precision
+        assert np.allclose(ours, library, atol=1e-6)
 
 
 def test_width_specs():
     assert parse_width("max") == ("max", 1.0)
     assert parse_width("area:0.1") == ("area", 0.1)
-    for bad in ("area:-1", "median:0.5", "mean:x"):
+    assert parse_width("abs:20") == ("abs", 20.0)
+    for bad in ("area:-1", "median:0.5", "mean:x", "abs:0"):
         with pytest.raises(InvalidOptionError, match="bad width"):
             parse_width(bad)

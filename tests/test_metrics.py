@@ -42,6 +42,8 @@ def test_toy_hand_values():
     assert M.nearest_neighbor(D, lab) == pytest.approx(4 / 6)
     assert M.first_tier(D, lab) == pytest.approx((4 * 0.5 + 2 * 0) / 6)
     assert M.second_tier(D, lab) == pytest.approx((4 * 1 + 2 * 0.5) / 6)
+    # class a: queries 0, 1 find one of two in the first tier, query 2 none; b likewise
+    assert M.first_tier_by_class(D, lab) == pytest.approx({"a": 1 / 3, "b": 1 / 3})
     # depth 3: X rows find 2 (P = 2/3, R = 1, E = 4/5), Y rows find 0
     assert M.e_measure(D, lab, depth=3) == pytest.approx(4 * 0.8 / 6)
     # depth 32 is clipped to N - 1 = 5: every row finds both, P = 2/5, R = 1, E = 4/7

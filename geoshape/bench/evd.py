@@ -3,11 +3,14 @@
 For every mesh, ``max(l)`` max-min samples and their geodesic Voronoi cells are computed
 once with the graph backend (:func:`geoshape.geometry.sampling.geodesic_voronoi_sampling`)
 together with the block of geodesic distances between them; a smaller ``l`` uses the
-first ``l`` samples (a farthest-point prefix is itself a farthest-point run), the cells of
-the dropped samples merged into their nearest kept sample. Each setting (``l``, width,
+first ``l`` samples (a farthest-point prefix is itself a farthest-point run) with the
+exact geodesic Voronoi cells of that prefix, read off the same distance rows. Each setting (``l``, width,
 weighting) gives the 20-entry EVD of every mesh and NN / FT / mAP of the χ² ranking. The
 thesis setting (``l = 60``, unweighted, σ = max) and the library default (``l = 300``,
-area-weighted, σ = 0.1 √area) are rows of the same table.
+area-weighted, σ = 0.1 √area) are rows of the same table. A width ``abs:S`` (``S`` in the
+meshes' own units) is *not* scale invariant: it shows how much of the remaining error is
+size — TOSCA keeps each character's real size. First tier per class is printed for the
+library default and the best row.
 
 ``geoshape bench evd [DIR]`` writes the section ``evd-settings`` of docs/RESULTS.md.
 """
@@ -18,8 +21,8 @@ import argparse
 
 HELP = "EVD settings on tosca_r5k: samples l, Gaussian width, area weighting (NN/FT/mAP)"
 
-SAMPLES = (60, 150, 300)
-WIDTHS = ("max", "mean:0.5", "area:0.05", "area:0.1", "area:0.2")
+SAMPLES = (60, 150, 300, 500)
+WIDTHS = ("max", "mean:0.5", "area:0.05", "area:0.1", "area:0.2", "abs:20")
 N_EIGENVALUES = 20
 
 
@@ -35,7 +38,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parse_width(spec: str) -> tuple[str, float]:
-    """``"max"`` → ("max", 1); ``"area:0.1"`` → ("area", 0.1); ``"mean:0.5"`` → ("mean", 0.5)."""
+    """``"max"`` → ("max", 1); ``"area:0.1"`` → ("area", 0.1); ``"mean:0.5"`` → ("mean", 0.5);
+    ``"abs:20"`` → ("abs", 20.0)."""
     from geoshape.errors import InvalidOptionError
 
     kind, _, rho = spec.strip().partition(":")
@@ -43,16 +47,19 @@ def parse_width(spec: str) -> tuple[str, float]:
         factor = float(rho) if rho else 1.0
     except ValueError:
         factor = -1.0
-    if kind not in ("max", "mean", "area") or not factor > 0:
-        raise InvalidOptionError(f"bad width {spec!r}: expected max, mean:RHO or area:RHO with RHO > 0")
+    if kind not in ("max", "mean", "area", "abs") or not factor > 0:
+        raise InvalidOptionError(
+            f"bad width {spec!r}: expected max, mean:RHO, area:RHO or abs:S with RHO, S > 0")
     return kind, factor
 
 
-def mesh_samples(V, F, n_samples: int) -> dict:
+def mesh_samples(V, F, n_samples: int, prefixes=()) -> dict:
     """Samples, cell areas and the sample-to-sample geodesic block of one mesh.
 
-    O(n log n) sampling (:func:`geodesic_voronoi_sampling`) plus ``n_samples`` full
-    Dijkstra rows; memory O(n_samples n) transiently.
+    ``cells[l]`` holds the geodesic Voronoi cell areas of the first ``l`` samples for
+    ``l`` in ``prefixes`` and ``n_samples``. O(n log n) sampling
+    (:func:`geodesic_voronoi_sampling`) plus ``n_samples`` full Dijkstra rows; memory
+    O(n_samples n) transiently.
     """
     import numpy as np
     from scipy.sparse.csgraph import dijkstra
@@ -65,11 +72,13 @@ def mesh_samples(V, F, n_samples: int) -> dict:
     samples, owner, _ = geodesic_voronoi_sampling(graph, n_samples)
     rows = dijkstra(graph, directed=True, indices=samples)
     vertex_area = _vertex_areas(V, F)
+    cells = {n_samples: np.bincount(owner, weights=vertex_area, minlength=n_samples)}
+    for l in set(prefixes) - {n_samples}:
+        if l < n_samples:
+            cells[l] = np.bincount(rows[:l].argmin(axis=0), weights=vertex_area, minlength=l)
     block = rows[:, samples]
     return {"D": 0.5 * (block + block.T), "rows_mean": float(rows.mean()),
-            "rows_max": float(rows.max()), "cells": np.bincount(owner, weights=vertex_area,
-                                                                minlength=n_samples),
-            "area": float(vertex_area.sum())}
+            "rows_max": float(rows.max()), "cells": cells, "area": float(vertex_area.sum())}
 
 
 def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:  # noqa: F821
@@ -84,14 +93,12 @@ def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:
         sigma = s["rows_max"]
     elif kind == "mean":
         sigma = rho * s["rows_mean"]
-    else:
+    elif kind == "area":
         sigma = rho * np.sqrt(s["area"])
+    else:
+        sigma = rho
     K = np.exp(-(D**2) / (2.0 * sigma * sigma))
-    w = None
-    if weighted:
-        owner = np.concatenate([np.arange(l), s["D"][l:, :l].argmin(axis=1)])
-        w = np.bincount(owner, weights=s["cells"], minlength=l)
-    return affinity_spectrum(K, w, N_EIGENVALUES)
+    return affinity_spectrum(K, s["cells"][l] if weighted else None, N_EIGENVALUES)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,7 +112,12 @@ def run(args: argparse.Namespace) -> int:
     from geoshape.io.datasets import dataset_dir, read_labels
     from geoshape.io.mesh_io import load_mesh
     from geoshape.retrieval.meshes import single_thread_blas
-    from geoshape.retrieval.metrics import first_tier, mean_average_precision, nearest_neighbor
+    from geoshape.retrieval.metrics import (
+        first_tier,
+        first_tier_by_class,
+        mean_average_precision,
+        nearest_neighbor,
+    )
     from geoshape.spectral.evd import evd_distance_matrix
 
     folder = dataset_dir("tosca_r5k", required=True) if args.dir is None else args.dir
@@ -120,8 +132,8 @@ def run(args: argparse.Namespace) -> int:
         cache = []
         for f in tqdm(files, desc="samples", unit="mesh"):
             V, F = load_mesh(f)
-            cache.append(mesh_samples(V, F, max(samples)))
-        rows = []
+            cache.append(mesh_samples(V, F, max(samples), samples))
+        rows, by_class = [], {}
         for l in samples:
             for width in widths:
                 for weighted in (False, True):
@@ -129,18 +141,32 @@ def run(args: argparse.Namespace) -> int:
                     D = evd_distance_matrix(X)
                     default = l == 300 and width == "area:0.1" and weighted
                     thesis = l == 60 and width == "max" and not weighted
+                    note = "library default" if default else "thesis" if thesis else ""
+                    if width.startswith("abs"):
+                        note = "size-aware (not scale invariant)"
                     rows.append([l, width, "area" if weighted else "none",
                                  nearest_neighbor(D, labels), first_tier(D, labels),
-                                 mean_average_precision(D, labels),
-                                 "library default" if default else "thesis" if thesis else ""])
+                                 mean_average_precision(D, labels), note])
+                    by_class[(l, width, weighted)] = first_tier_by_class(D, labels)
     seconds = time.perf_counter() - t0
     table = markdown_table(["l", "width", "weights", "NN", "FT", "mAP", ""], rows)
+    invariant = [r for r in rows if not str(r[1]).startswith("abs")]
+    best = max(invariant, key=lambda r: (r[4], r[3]))
+    shown = [("library default", (300, "area:0.1", True)),
+             (f"best scale-invariant row (l = {best[0]}, {best[1]}, weights {best[2]})",
+              (best[0], best[1], best[2] == "area"))]
+    lines = []
+    for name, key in shown:
+        if key in by_class:
+            lines.append(f"- {name}: " + ", ".join(f"{c} {v:.3f}" for c, v in by_class[key].items()))
     text = (f"## EVD settings on tosca_r5k (thesis §4.6.2)\n\nCommand: `geoshape bench evd` "
             f"({seconds:.0f} s; {machine_note()}). {len(files)} meshes, {len(set(labels))} classes; "
             "graph geodesics, 20 eigenvalues, χ² distance. Widths: `max` = largest sampled geodesic "
-            "distance, `mean:ρ` = ρ × mean sampled distance, `area:ρ` = ρ × √area. Weights `area`: "
+            "distance, `mean:ρ` = ρ × mean sampled distance, `area:ρ` = ρ × √area, `abs:S` = S in the "
+            "meshes' units (depends on size, so not scale invariant). Weights `area`: "
             "each sample weighted by its geodesic Voronoi cell (the eigenvalues then approximate "
-            "the affinity operator's).\n\n" + table + "\n")
+            "the affinity operator's).\n\n" + table + "\n\nFirst tier per class:\n\n"
+            + "\n".join(lines) + "\n")
     print(text)
     if not args.no_results:
         update_results_section("evd-settings", text)

@@ -29,6 +29,7 @@ __all__ = [
     "bulls_eye",
     "nearest_neighbor",
     "first_tier",
+    "first_tier_by_class",
     "second_tier",
     "e_measure",
     "dcg",
@@ -183,6 +184,20 @@ def first_tier(D, labels) -> float:
     """Mean recall within the first C − 1 results (C = class size, query excluded)."""
     rel, n_rel = _psb_rows(*ranked_relevance(D, labels), "first tier")
     return _tier(rel, n_rel, 1)
+
+
+def first_tier_by_class(D, labels) -> dict:
+    """First tier averaged over the queries of each class: ``{label: FT}`` (classes of
+    one item are left out). Shows which classes a descriptor confuses."""
+    rel, n_rel = ranked_relevance(D, labels)
+    labels = np.asarray(labels)
+    cum = np.cumsum(rel, axis=1)
+    out = {}
+    for label in sorted(set(labels.tolist())):
+        rows = np.flatnonzero((labels == label) & (n_rel > 0))
+        if len(rows):
+            out[label] = float(np.mean(cum[rows, n_rel[rows] - 1] / n_rel[rows]))
+    return out
 
 
 def second_tier(D, labels) -> float:
