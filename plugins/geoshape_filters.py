@@ -63,7 +63,7 @@ def _other_mesh(ms) -> int:
 
 
 def _evd_samples(ms) -> int:
-    """min(300, number of vertices of the current mesh)"""
+    """min(500 (the library default), number of vertices of the current mesh)"""
     from geoshape.spectral.evd import EVD_N_SAMPLES
 
     if ms is None or not len(ms):

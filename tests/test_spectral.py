@@ -151,7 +151,9 @@ def test_folding_a_strip_changes_nothing(geodesics):
     a = spectral_embedding(V0, F, k=4, method="exact", geodesics=geodesics)
     b = spectral_embedding(V1, F, k=4, method="exact", geodesics=geodesics)
     assert np.allclose(a.eigenvalues, b.eigenvalues, rtol=1e-6)
-    assert np.allclose(a.coords, b.coords, atol=1e-6 * np.abs(a.coords).max())
+    # the strip is symmetric: an eigenvector's largest entries tie in magnitude, so its
+    # sign is decided by rounding (it changed with the BLAS thread count)
+    assert np.allclose(a.coords, align_signs(a.coords, b.coords), atol=1e-6 * np.abs(a.coords).max())
 
 
 def test_bending_invariance():

@@ -216,7 +216,9 @@ def _section(state, args, stamp, workers, machine) -> str:
     if hires:
         lines.append(f"EVD on tosca_hires ({hires['n']} meshes, {hires['vertices']} vertices, "
                      f"one thread): mean {hires['mean_s']:.2f} s, max {hires['max_s']:.2f} s per mesh.")
-    lines += ["", NOTES]
+    from geoshape.spectral.evd import EVD_N_SAMPLES
+
+    lines += ["", NOTES.format(samples=EVD_N_SAMPLES)]
     return "\n".join(lines) + "\n"
 
 
@@ -224,11 +226,12 @@ NOTES = (
     "Reading the tosca_r5k rows: three of its eight classes are human bodies (david, michael, "
     "victoria) whose intrinsic geometry differs only in proportions, so bending-invariant global "
     "descriptors confuse them; nearly all EVD nearest-neighbour errors are human-to-human. "
-    "`evd` is the area-weighted narrow-kernel configuration (300 samples, sigma = 0.1 sqrt(area)); "
-    "`evd_thesis` the thesis' (60 unweighted samples, sigma = max). The settings in between are "
-    "compared by `geoshape bench evd` (section evd-settings); none reaches the target "
-    "NN = 1.0 / FT >= 0.95 on this set, nor does EVD -> CCD (the CCD re-ranking is less "
-    "discriminative than the EVD it re-ranks). SHD, LFD and D2 are compared on the original mesh "
-    "and on the geodesic embedding in the same table (thesis Fig. 4.10 claim: better on the "
-    "embedding). See docs/retrieval3d.md."
+    "`evd` is the area-weighted narrow-kernel configuration ({samples} samples, sigma = 0.1 "
+    "sqrt(area)); `evd_thesis` the thesis' (60 unweighted samples, sigma = max). The settings in "
+    "between are compared by `geoshape bench evd` (section evd-settings, with first tier per "
+    "class); none reaches the target NN = 1.0 / FT >= 0.95 on this set, nor does EVD -> CCD (the "
+    "CCD re-ranking is less discriminative than the EVD it re-ranks): what is left is david vs "
+    "michael, two figures that differ mostly in size. SHD, LFD and D2 are compared on the "
+    "original mesh and on the geodesic embedding in the same table (thesis Fig. 4.10 claim: "
+    "better on the embedding). See docs/retrieval3d.md."
 )

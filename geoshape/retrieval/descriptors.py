@@ -71,7 +71,7 @@ CCD_DIMS = 5
 #: eigenvector reordering used by CCD (see geoshape.correspondence.reorder)
 CCD_REORDER = "greedy"
 #: version of the stored descriptors; bump when a descriptor's numbers change
-DESCRIPTOR_VERSION = 2
+DESCRIPTOR_VERSION = 3  # 3: EVD with 500 samples (was 300)
 
 
 # ---------------------------------------------------------------------------------------
@@ -333,7 +333,7 @@ _INTRINSIC = _RIGID + ("bending",)
 DESCRIPTORS: dict[str, DescriptorSpec] = {
     s.name: s
     for s in [
-        DescriptorSpec("evd", "√ of the top 20 eigenvalues of the area-weighted affinity of 300 "
+        DescriptorSpec("evd", "√ of the top 20 eigenvalues of the area-weighted affinity of 500 "
                        "samples, sigma = 0.1 √area", _evd, "chi2", "spectral", _INTRINSIC),
         DescriptorSpec("evd_thesis", "√ of the top 20 eigenvalues of the Nyström sample affinity "
                        "(thesis: 60 samples, sigma = max)", _evd_thesis, "chi2", "spectral", _INTRINSIC),

@@ -5,7 +5,7 @@ Gaussian geodesic affinity of ``l`` max-min samples — the Nyström sample bloc
 descriptors with :func:`chi2_distance`. Two configurations:
 
 ``"quadrature"`` (default)
-    ``l = 300`` samples, each weighted by the area of its geodesic Voronoi cell, width
+    ``l = 500`` samples, each weighted by the area of its geodesic Voronoi cell, width
     ``sigma = 0.1 sqrt(area)``: the eigenvalues of ``W^½ A W^½`` (``W`` the cell areas
     over the total) approximate those of the affinity *operator* on the surface, so they
     do not depend on the vertex count, the sampling density or the sample positions, and
@@ -17,7 +17,7 @@ descriptors with :func:`chi2_distance`. Two configurations:
     sampled geodesic distance (every affinity lies in [exp(-1/2), 1]).
 
 On tosca_r5k (76 meshes, 8 classes) the thesis configuration reaches NN 0.75 / FT 0.57
-and the quadrature one NN ≈ 0.99 / FT ≈ 0.87: see docs/RESULTS.md.
+and the quadrature one NN ≈ 0.99 / FT ≈ 0.89: see docs/RESULTS.md.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ __all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "evd_descriptor"
 
 EVD_N_EIGENVALUES = 20
 #: samples per shape of the default configuration; keep it fixed across a collection
-EVD_N_SAMPLES = 300
+EVD_N_SAMPLES = 500
 #: the named configurations: samples, width rule, cell weighting
 EVD_CONFIGS = {
-    "quadrature": {"n_samples": 300, "sigma": "area", "weighting": "area"},
+    "quadrature": {"n_samples": EVD_N_SAMPLES, "sigma": "area", "weighting": "area"},
     "thesis": {"n_samples": 60, "sigma": "max", "weighting": "none"},
 }
 #: width of the quadrature kernel in units of sqrt(surface area)
