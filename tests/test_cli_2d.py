@@ -85,6 +85,7 @@ def test_demo_runs(tmp_path, capsys):
     assert "bull's-eye" in capsys.readouterr().out
     summary = json.loads((tmp_path / "metrics.json").read_text())["correspondence3d"]
     # two poses of one generated biped: the map keeps left and right (not the mirror image,
-    # which would reverse the orientation of the mapped triangles) and lands near the truth
+    # which would reverse the orientation of the mapped triangles) and lands on the truth
+    # (before the distortion tie-break it chose a map 0.09 diagonals off, as isometric as it)
     assert summary["orientation"] > 0
-    assert summary["median_error"] < 0.1
+    assert summary["median_error"] < 0.02

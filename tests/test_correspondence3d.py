@@ -43,6 +43,17 @@ def test_permuted_copy_is_recovered():
     assert exact_share(alone.p2p_12, inv) >= 0.99 and alone.details["source"] == "spectral"
 
 
+def test_geodesic_distortion_is_zero_for_an_isometry_and_large_for_a_scramble():
+    from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
+
+    V, _, F = figure()
+    m1, m2 = PreparedMesh(V, F), PreparedMesh(3.0 * V + 1.0, F)  # uniform scale does not count
+    rows = np.arange(0, len(V), len(V) // 30)
+    assert geodesic_distortion(m1, m2, rows, rows) == pytest.approx(0.0, abs=1e-12)
+    scrambled = np.random.default_rng(0).permutation(len(V))[: len(rows)]
+    assert geodesic_distortion(m1, m2, rows, scrambled) > 0.3
+
+
 @pytest.mark.parametrize("method", ["geoshape", "jz"])
 def test_invariance_to_rotation_translation_and_scale(method):
     V, _, F = figure()

@@ -257,11 +257,26 @@ def _sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
 LARGE_MESH = 8000
 
 
+def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, images: np.ndarray) -> float:
+    """Mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's distances divided
+    by their median, so uniform scale does not count). ``images[a]`` is the vertex of
+    mesh 2 matched to ``rows1[a]``. O(s n log n) for s rows (graph Dijkstra).
+    """
+    rows1 = np.asarray(rows1, dtype=np.int64)
+    images = np.asarray(images, dtype=np.int64)
+    D1 = m1.solver("graph").distances(rows1)[:, rows1]
+    D2 = m2.solver("graph").distances(images)[:, images]
+    D1 = D1 / max(float(np.median(D1)), 1e-300)
+    D2 = D2 / max(float(np.median(D2)), 1e-300)
+    return float(np.mean(np.abs(D1 - D2)))
+
+
 def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_iterations=6,
               n_controls=200, lb_k=60, screen_k=16,
               screen_samples=500, zoomout_start=6, zoomout_step=2, zoomout_samples=1500,
               n_samples=None, seed=0, symmetry_completion=True, symmetry_ratio=1.25,
-              prefer="preserving", descriptor_map=True, descriptor_k=30, descriptor_ratio=1.15):
+              prefer="preserving", descriptor_map=True, descriptor_k=30, descriptor_ratio=1.15,
+              distortion_samples=32):
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
     from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
@@ -391,7 +406,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
                            zoomout_step=zoomout_step, zoomout_samples=zoomout_samples,
                            n_samples=n_samples, seed=seed, prefer="reversing", symmetry_completion=False,
                            descriptor_map=descriptor_map, descriptor_k=descriptor_k,
-                           descriptor_ratio=descriptor_ratio)
+                           descriptor_ratio=descriptor_ratio, distortion_samples=distortion_samples)
         best_wrong = min(wrong, key=lambda r: r[1])
         if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
             p2p, energy, orient = refine(mirror.p2p_12[best_wrong[2]], on_refinement_rows=True)
@@ -399,12 +414,26 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
                              symmetry_completed=True)
             refined.append((unwanted(orient), energy, p2p, completed))
         timings["symmetry"] = time.perf_counter() - t
-    # the descriptor candidate must be clearly more isometric than the spectral ones: wave
-    # kernel signatures are not robust to stretching (on TOSCA meshes stretched ×1.5 along
-    # one axis it won three pairs by 3–12 % in energy, all with the wrong map), while on
-    # SCAPE it won its pairs by 26 % or more
-    _, energy, coarse, chosen = min(refined, key=lambda r: (
-        r[0], r[1] * (descriptor_ratio if r[3].get("source") == "descriptors" else 1.0)))
+    # 4. the choice: wanted orientation first, then the functional-map energy. When the
+    #    descriptor candidate and the best spectral one are within descriptor_ratio in
+    #    energy, the energy cannot tell them apart (stretched TOSCA meshes: the descriptor
+    #    map won by 3–12 % with wrong maps; a generated biped: it lost by 1 % with the right
+    #    one), so the geodesic distortion of sample pairs decides
+    chosen_row = min(refined, key=lambda r: (r[0], r[1]))
+    wanted = [r for r in refined if not r[0]]
+    by_descriptors = [r for r in wanted if r[3].get("source") == "descriptors"]
+    spectral = [r for r in wanted if r[3].get("source") != "descriptors"]
+    if by_descriptors and spectral:
+        d, sp = by_descriptors[0], min(spectral, key=lambda r: r[1])
+        if max(d[1], sp[1]) <= descriptor_ratio * min(d[1], sp[1]):
+            t = time.perf_counter()
+            rows = s1[:distortion_samples] if large else c1[:distortion_samples]
+            at = slice(0, len(rows)) if large else rows  # large: maps are aligned with s1
+            dist = {id(r): geodesic_distortion(m1, m2, rows, r[2][at]) for r in (d, sp)}
+            chosen_row = min((d, sp), key=lambda r: dist[id(r)])
+            details["distortion"] = {"descriptors": dist[id(d)], "spectral": dist[id(sp)]}
+            timings["distortion"] = time.perf_counter() - t
+    _, energy, coarse, chosen = chosen_row
     details["symmetry_completed"] = bool(chosen.get("symmetry_completed", False))
     details["source"] = chosen.get("source", "spectral")
     t = time.perf_counter()
@@ -469,7 +498,7 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         ``icp_iterations``, ``anchors``, ``bijective``, ``scaling``, ``sigma`` (jz), ``lb_k``,
         ``n_keep``, ``n_refine``, ``screen_samples``, ``zoomout_samples``,
         ``symmetry_completion``, ``symmetry_ratio``, ``descriptor_map``, ``descriptor_k``,
-        ``descriptor_ratio`` (geoshape),
+        ``descriptor_ratio``, ``distortion_samples`` (geoshape),
         ``n_samples`` (Nyström samples), ``seed``.
     blas_threads : int or None
         BLAS threads while computing (default 1). The pipeline makes many small and
