@@ -100,13 +100,13 @@ def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, d
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    area_scale = np.sqrt(basis.mass.sum() / max(_vertex_area_total(V, F), 1e-300))
-    Vs = V * area_scale  # the unit-area mesh of the basis
-    G = igl.grad(Vs, F)  # (3m, n): x, y, z blocks
-    m = len(F)
-    normals = _face_normals(Vs, F) * outward_sign(Vs, F)
+    normals = _face_normals(V, F) * outward_sign(V, F)
     face_area = 0.5 * np.linalg.norm(normals, axis=1)
     normals /= np.maximum(2.0 * face_area, 1e-300)[:, None]
+    scale = np.sqrt(basis.mass.sum() / max(float(face_area.sum()), 1e-300))
+    face_area *= scale * scale  # areas and gradients of the basis' unit-area mesh
+    G = igl.grad(V * scale, F)  # (3m, n): x, y, z blocks
+    m = len(F)
     Phi = basis.evecs[:, :k]
     grad_phi = (G @ Phi).reshape(3, m, k)  # ∇φ_j on each face
     grad_f = (G @ descriptors).reshape(3, m, -1)  # ∇f on each face
@@ -129,11 +129,6 @@ def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, d
         out += test[s:e].T @ values.reshape(e - s, d * k)
     out = out.reshape(k, d, k).transpose(1, 0, 2)
     return 0.5 * (out - out.transpose(0, 2, 1))  # skew, as the continuous operator
-
-
-def _vertex_area_total(V, F) -> float:
-    e = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    return float(0.5 * np.linalg.norm(e, axis=1).sum())
 
 
 def _mean_curvature(H: np.ndarray) -> float:
