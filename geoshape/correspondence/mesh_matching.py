@@ -257,18 +257,20 @@ def _sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
 LARGE_MESH = 8000
 
 
-def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, images: np.ndarray) -> float:
-    """Mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's distances divided
-    by their median, so uniform scale does not count). ``images[a]`` is the vertex of
-    mesh 2 matched to ``rows1[a]``. O(s n log n) for s rows (graph Dijkstra).
+def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images) -> list[float]:
+    """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
+    distances divided by their median, so uniform scale does not count). Each of ``images``
+    gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Mesh 1's rows
+    are computed once. O((1 + maps) s n log n) for s rows (graph Dijkstra).
     """
     rows1 = np.asarray(rows1, dtype=np.int64)
-    images = np.asarray(images, dtype=np.int64)
-    D1 = m1.solver("graph").distances(rows1)[:, rows1]
-    D2 = m2.solver("graph").distances(images)[:, images]
-    D1 = D1 / max(float(np.median(D1)), 1e-300)
-    D2 = D2 / max(float(np.median(D2)), 1e-300)
-    return float(np.mean(np.abs(D1 - D2)))
+
+    def normalised(mesh, rows):
+        D = mesh.solver("graph").distances(rows)[:, rows]
+        return D / max(float(np.median(D)), 1e-300)
+
+    D1 = normalised(m1, rows1)
+    return [float(np.mean(np.abs(D1 - normalised(m2, np.asarray(t, dtype=np.int64))))) for t in images]
 
 
 def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_iterations=6,
@@ -277,6 +279,9 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
               n_samples=None, seed=0, symmetry_completion=True, symmetry_ratio=1.25,
               prefer="preserving", descriptor_map=True, descriptor_k=30, descriptor_ratio=1.15,
               distortion_samples=32):
+    # every option, for the symmetry-completion call below (first statement: only the
+    # parameters are local yet)
+    settings = {name: value for name, value in locals().items() if name not in ("m1", "m2")}
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
     from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
@@ -400,13 +405,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     if symmetry_completion and prefer == "preserving" and wrong and (
             not right or min(r[1] for r in right) > symmetry_ratio * min(r[1] for r in wrong)):
         t = time.perf_counter()
-        mirror = _geoshape(m2, m2, k=k, reorder=reorder, n_keep=n_keep, n_refine=n_refine,
-                           icp_iterations=icp_iterations, n_controls=n_controls, lb_k=lb_k,
-                           screen_k=screen_k, screen_samples=screen_samples, zoomout_start=zoomout_start,
-                           zoomout_step=zoomout_step, zoomout_samples=zoomout_samples,
-                           n_samples=n_samples, seed=seed, prefer="reversing", symmetry_completion=False,
-                           descriptor_map=descriptor_map, descriptor_k=descriptor_k,
-                           descriptor_ratio=descriptor_ratio, distortion_samples=distortion_samples)
+        mirror = _geoshape(m2, m2, **dict(settings, prefer="reversing", symmetry_completion=False))
         best_wrong = min(wrong, key=lambda r: r[1])
         if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
             p2p, energy, orient = refine(mirror.p2p_12[best_wrong[2]], on_refinement_rows=True)
@@ -429,9 +428,9 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
             t = time.perf_counter()
             rows = s1[:distortion_samples] if large else c1[:distortion_samples]
             at = slice(0, len(rows)) if large else rows  # large: maps are aligned with s1
-            dist = {id(r): geodesic_distortion(m1, m2, rows, r[2][at]) for r in (d, sp)}
-            chosen_row = min((d, sp), key=lambda r: dist[id(r)])
-            details["distortion"] = {"descriptors": dist[id(d)], "spectral": dist[id(sp)]}
+            dist_d, dist_sp = geodesic_distortion(m1, m2, rows, d[2][at], sp[2][at])
+            chosen_row = d if dist_d <= dist_sp else sp
+            details["distortion"] = {"descriptors": dist_d, "spectral": dist_sp}
             timings["distortion"] = time.perf_counter() - t
     _, energy, coarse, chosen = chosen_row
     details["symmetry_completed"] = bool(chosen.get("symmetry_completed", False))
