@@ -26,6 +26,8 @@ def test_bench_evd_writes_the_settings_table(tmp_path, monkeypatch, capsys):
     # two very different classes: every setting ranks a same-class pose first
     assert all(float(r.split("|")[4]) == 1.0 for r in rows)
     assert "First tier per class" in text and "- best scale-invariant row" in text
+    # the exact-spectrum reference row of the scale-invariant width, and the confusion table
+    assert any(line.startswith("| exact | area:0.2 |") for line in text.splitlines())
 
 
 def test_weighted_settings_match_the_library_descriptor():
@@ -50,3 +52,36 @@ def test_width_specs():
     for bad in ("area:-1", "median:0.5", "mean:x", "abs:0"):
         with pytest.raises(InvalidOptionError, match="bad width"):
             parse_width(bad)
+
+
+def test_reference_evd_is_the_heat_kernel_spectrum():
+    """Known answer: a unit-area sphere has μ = 4π l(l + 1) with multiplicity 2l + 1."""
+    from geoshape.bench.evd import reference_evd
+
+    mu = np.repeat([4 * np.pi * l * (l + 1) for l in range(4)], [1, 3, 5, 7])
+    rho = 0.1
+    expected = np.sqrt(2 * np.pi) * rho * np.exp(-rho**2 * mu / 4)
+    assert np.allclose(reference_evd(mu, 1.0, "area:0.1"), expected)
+    # area:ρ ignores the size; abs:S at area A equals area:(S / sqrt(A))
+    assert np.allclose(reference_evd(mu, 9.0, "area:0.1"), expected)
+    assert np.allclose(reference_evd(mu, 9.0, "abs:0.3"), expected)
+    assert not np.allclose(reference_evd(mu, 4.0, "abs:0.3"), expected)
+    with pytest.raises(InvalidOptionError, match="reference rows"):
+        reference_evd(mu, 1.0, "max")
+
+
+def test_most_confused_pair_and_class_separation():
+    from geoshape.bench.evd import class_separation, most_confused_pair
+
+    labels = ["a", "a", "b", "b", "c", "c"]
+    x = np.array([0.0, 0.2, 0.1, 0.3, 5.0, 5.1])  # a and b interleave, c is far away
+    D = np.abs(x[:, None] - x[None, :])
+    a, b, count = most_confused_pair(D, labels)
+    assert (a, b) == ("a", "b") and count == 4  # every a and b query's one first-tier place
+    y = np.array([0.0, 1.0, 10.0, 11.0])  # separated classes: no confusion
+    assert most_confused_pair(np.abs(y[:, None] - y[None, :]), ["a", "a", "b", "b"]) == ("", "", 0)
+
+    values = np.array([[10.0, 1.0], [10.0, 3.0], [12.0, 1.0], [12.0, 3.0]])
+    gap, spread = class_separation(values, ["a", "a", "b", "b"], "a", "b")
+    assert np.allclose(gap, [1 - 10 / 12, 0.0])
+    assert np.allclose(spread, [0.0, 0.5])  # std 1 over mean 2 in both classes
