@@ -341,6 +341,8 @@ def _evd_apply(ms, p, progress):
     from geoshape.spectral.evd import evd_descriptor
 
     mesh = ms.current_mesh()
+    if p["config"] == "heat":  # no samples and no geodesics: the other options do not apply
+        return {"evd": evd_descriptor(mesh.V, mesh.F, config="heat", n_eigenvalues=p["n_eigenvalues"])}
     evd = evd_descriptor(mesh.V, mesh.F, config=p["config"], n_eigenvalues=p["n_eigenvalues"],
                          n_samples=p["n_samples"], geodesics=p["geodesics"], seed=p["seed"])
     return {"evd": evd}
@@ -357,7 +359,9 @@ register(Filter(
     params=(
         EnumParam("config", "quadrature", "Configuration", "quadrature: samples weighted by their "
                   "geodesic Voronoi areas, sigma = 0.1 sqrt(area); thesis: unweighted, sigma = max "
-                  "geodesic distance (the thesis used 60 samples)", choices=("quadrature", "thesis")),
+                  "geodesic distance (the thesis used 60 samples); heat: the narrow-kernel limit "
+                  "from exact Laplace-Beltrami eigenvalues (ignores samples, geodesics, seed)",
+                  choices=("quadrature", "thesis", "heat")),
         IntParam("n_eigenvalues", 20, "Eigenvalues", "descriptor length (<= n_samples)", min=1),
         IntParam("n_samples", _evd_samples, "Samples", "max-min samples; keep it fixed across a "
                  "collection", min=1),

@@ -75,7 +75,8 @@ def test_ccd_invariance_and_discrimination(figures):
     assert _dist("ccd", a, b) < 0.2 * _dist("ccd", a, c)
 
 
-@pytest.mark.parametrize("name", ["evd", "shapedna", "gsv", "d2_emb", "shd_emb", "lfd_emb", "ccd"])
+@pytest.mark.parametrize("name", ["evd", "evd_heat", "shapedna", "gsv", "d2_emb", "shd_emb", "lfd_emb",
+                                  "ccd"])
 def test_reposed_copy_closer_than_other_class(name, figures):
     """Bending-invariant descriptors: a re-posed copy is nearer than another class."""
     (V0, F0), (V1, F1) = figures["biped"]

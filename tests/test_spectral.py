@@ -265,6 +265,44 @@ def test_quadrature_evd_on_the_sphere_has_spherical_harmonic_multiplicities():
         assert np.allclose(evd_descriptor(V, F, n_samples=n_samples)[:9] ** 2, lam[:9], rtol=0.05)
 
 
+def test_heat_evd_on_the_sphere_is_the_analytic_heat_spectrum():
+    """Known answer: on the unit-area sphere μ = 4π l(l + 1) with multiplicity 2l + 1, and
+    the heat EVD is sqrt(2π) ρ exp(-ρ² μ / 4), ρ = 0.1; it does not depend on size."""
+    from geoshape.spectral.evd import heat_limit_evd
+
+    V, F = icosphere(4)
+    heat = evd_descriptor(V, F, config="heat")
+    mu = np.repeat([4 * np.pi * l * (l + 1) for l in range(5)], [1, 3, 5, 7, 9])[:20]
+    analytic = np.sqrt(2 * np.pi) * 0.1 * np.exp(-0.01 * mu / 4)
+    # discretisation error grows with the frequency: 0.2 % up to l = 3, 0.5 % at l = 4
+    assert np.allclose(heat[:16], analytic[:16], rtol=3e-3)
+    assert np.allclose(heat, analytic, rtol=1e-2)
+    assert np.allclose(heat_limit_evd(mu, 0.1), analytic)
+    assert np.allclose(evd_descriptor(3.7 * V + 1.0, F, config="heat"), heat, atol=1e-9)
+
+
+def test_heat_evd_retriangulated_copy_close_other_class_far():
+    import trimesh
+
+    cap_a = trimesh.creation.capsule(height=3.0, radius=0.5, count=[14, 14])
+    cap_b = trimesh.creation.capsule(height=3.0, radius=0.5, count=[28, 28])
+    plate = trimesh.creation.box(extents=[3.0, 2.0, 0.3]).subdivide().subdivide().subdivide()
+    d = [evd_descriptor(m.vertices, m.faces, config="heat") for m in (cap_a, cap_b, plate)]
+    assert np.all(np.diff(d[0]) <= 1e-12)
+    assert chi2_distance(d[0], d[1]) < 0.05 * chi2_distance(d[0], d[2])
+
+
+def test_heat_evd_rejects_sampling_options():
+    V, F = icosphere(2)
+    for bad in ({"n_samples": 100}, {"sigma": "max"}, {"weighting": "none"}, {"geodesics": "heat"},
+                {"affinity": "euclidean"}):
+        with pytest.raises(InvalidOptionError, match="'heat' EVD samples nothing"):
+            evd_descriptor(V, F, config="heat", **bad)
+    tetra = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    with pytest.raises(InvalidOptionError, match="more than n_eigenvalues"):
+        evd_descriptor(tetra, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], config="heat")
+
+
 def test_evd_configurations_and_errors():
     V, F = icosphere(2)
     thesis = evd_descriptor(V, F, config="thesis")

@@ -125,20 +125,18 @@ def reference_evd(mu_unit, area: float, width: str) -> np.ndarray:  # noqa: F821
     Returns
     -------
     evd : (k,) float64
-        ``sqrt(2π σ² / area) · exp(-σ² μ / 4)`` with ``μ = mu_unit / area`` the eigenvalues
-        at the mesh's own size: the square roots of the heat-kernel spectrum of the
-        Gaussian affinity operator (area-normalised weights). O(k).
+        :func:`geoshape.spectral.evd.heat_limit_evd` at ``ρ``, or at ``S / √area``. O(k).
     """
     import numpy as np
+
+    from geoshape.spectral.evd import heat_limit_evd
 
     kind, rho = parse_width(width)
     if kind not in ("area", "abs"):
         from geoshape.errors import InvalidOptionError
 
         raise InvalidOptionError(f"reference rows take area:RHO or abs:S widths, got {width!r}")
-    mu = np.maximum(np.asarray(mu_unit, dtype=np.float64), 0.0) / area
-    sigma2 = (rho * rho * area) if kind == "area" else rho * rho
-    return np.sqrt(2.0 * np.pi * sigma2 / area) * np.exp(-sigma2 * mu / 4.0)
+    return heat_limit_evd(mu_unit, rho if kind == "area" else rho / np.sqrt(area))
 
 
 def most_confused_pair(D, labels) -> tuple[str, str, int]:

@@ -15,9 +15,19 @@ descriptors with :func:`chi2_distance`. Two configurations:
 ``"thesis"``
     The faithful configuration: ``l = 60`` unweighted samples, ``sigma`` = the largest
     sampled geodesic distance (every affinity lies in [exp(-1/2), 1]).
+``"heat"``
+    No sampling: the narrow-kernel limit of the quadrature configuration. For a small
+    width the Gaussian affinity operator is ``2π sigma²`` times the heat kernel at
+    ``t = sigma² / 2``, whose eigenvalues are ``exp(-sigma² μ_k / 2)`` for the
+    Laplace–Beltrami eigenvalues ``μ_k``; this configuration computes the ``μ_k`` of the
+    unit-area mesh (robust Laplacian) and returns the square roots of those affinity
+    eigenvalues for ``sigma = 0.1`` (:func:`heat_limit_evd`). It sees neither sample
+    positions nor geodesic error, and drops the curvature term that the sampled Gaussian
+    of geodesic distances adds at the same order.
 
-On tosca_r5k (76 meshes, 8 classes) the thesis configuration reaches NN 0.75 / FT 0.57
-and the quadrature one NN ≈ 0.99 / FT ≈ 0.89: see docs/RESULTS.md.
+On tosca_r5k (76 meshes, 8 classes) the thesis configuration reaches NN 0.75 / FT 0.57,
+the quadrature one NN ≈ 0.99 / FT ≈ 0.89 and the heat limit NN 1.0 / FT ≈ 0.96: see
+docs/RESULTS.md (sections retrieval3d-geodesic and evd-settings).
 """
 
 from __future__ import annotations
@@ -28,7 +38,7 @@ from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
 
 __all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "evd_descriptor", "affinity_spectrum",
-           "chi2_distance", "evd_distance_matrix"]
+           "heat_limit_evd", "chi2_distance", "evd_distance_matrix"]
 
 EVD_N_EIGENVALUES = 20
 #: samples per shape of the default configuration; keep it fixed across a collection
@@ -37,6 +47,7 @@ EVD_N_SAMPLES = 500
 EVD_CONFIGS = {
     "quadrature": {"n_samples": EVD_N_SAMPLES, "sigma": "area", "weighting": "area"},
     "thesis": {"n_samples": 60, "sigma": "max", "weighting": "none"},
+    "heat": {"n_samples": None, "sigma": "area", "weighting": "area"},
 }
 #: width of the quadrature kernel in units of sqrt(surface area)
 AREA_SIGMA = 0.1
@@ -60,9 +71,11 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     ----------
     V : (n, 3) float
     F : (m, 3) int
-    config : {"quadrature", "thesis"}
+    config : {"quadrature", "thesis", "heat"}
         Defaults for ``n_samples``, ``sigma`` and ``weighting`` (see the module notes);
-        any of those given explicitly overrides the configuration.
+        any of those given explicitly overrides the configuration. ``"heat"`` samples
+        nothing and takes none of ``n_samples``, ``sigma``, ``weighting``, ``geodesics``;
+        its ``affinity`` must be ``"geodesic"`` (it is intrinsic).
     n_eigenvalues : int
         Length of the descriptor (20 in the thesis); ``<= n_samples``.
     n_samples : int
@@ -85,12 +98,32 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     -----
     ``"thesis"``: l full geodesic rows, O(l n log n + l^3), memory O(l n). ``"quadrature"``
     with graph geodesics: sampling about O(n log n) plus l rows cut at 6 sigma (a few
-    percent of the surface each), then O(l^3); memory O(n + l^2).
+    percent of the surface each), then O(l^3); memory O(n + l^2). ``"heat"``: one sparse
+    factorisation and a shift-invert Lanczos run for ``n_eigenvalues`` pairs, about
+    O(n^1.5); memory O(n).
     """
     from geoshape._options import check_choice
 
     V, F = check_mesh(V, F, allow_no_faces=True)
     cfg = EVD_CONFIGS[check_choice("EVD configuration", config, tuple(EVD_CONFIGS))]
+    if config == "heat":
+        given = {"n_samples": n_samples, "sigma": sigma, "weighting": weighting}
+        given = [k for k, v in given.items() if v is not None]
+        if geodesics != "graph":
+            given.append("geodesics")
+        if given or affinity != "geodesic":
+            what = ", ".join(given) if given else f"affinity={affinity!r}"
+            raise InvalidOptionError(
+                f"the 'heat' EVD samples nothing and is intrinsic; it takes no {what} "
+                "(use config='quadrature' to set them)"
+            )
+        from geoshape.spectral.laplacian import laplacian_basis
+
+        if len(V) <= n_eigenvalues:
+            raise InvalidOptionError(
+                f"the 'heat' EVD needs more than n_eigenvalues = {n_eigenvalues} vertices, got {len(V)}"
+            )
+        return heat_limit_evd(laplacian_basis(V, F, k=n_eigenvalues).evals, AREA_SIGMA)
     n_samples = cfg["n_samples"] if n_samples is None else n_samples
     sigma = cfg["sigma"] if sigma is None else sigma
     weighting = check_choice("EVD weighting", cfg["weighting"] if weighting is None else weighting,
@@ -127,6 +160,35 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
         K, w = _sample_block(V, F, n_samples, affinity, sigma, width,
                              vertex_area if weighting == "area" else None, geodesics, p, seed)
     return affinity_spectrum(K, w, n_eigenvalues)
+
+
+def heat_limit_evd(mu_unit, rho: float = AREA_SIGMA) -> np.ndarray:
+    """The EVD in the narrow-kernel limit, from Laplace–Beltrami eigenvalues.
+
+    Parameters
+    ----------
+    mu_unit : (k,) float
+        The ``k`` smallest Laplace–Beltrami eigenvalues of the shape scaled to unit area
+        (``mu_unit[0] ≈ 0``; tiny negative round-off is clipped).
+    rho : float
+        Kernel width ``sigma`` in units of ``sqrt(area)``; a width of ``S`` mesh units on
+        a shape of area ``A`` is ``rho = S / sqrt(A)``.
+
+    Returns
+    -------
+    evd : (k,) float64
+        ``sqrt(2π) rho exp(-rho² mu_unit / 4)``: square roots of the eigenvalues
+        ``2π sigma² / A · exp(-sigma² μ / 2)`` of the Gaussian affinity operator with
+        area-normalised weights, in its heat-kernel limit. Non-increasing when ``mu_unit``
+        is non-decreasing. O(k).
+
+    >>> heat_limit_evd([0.0], rho=1.0)
+    array([2.50662827])
+    """
+    mu = np.maximum(np.asarray(mu_unit, dtype=np.float64), 0.0)
+    if not rho > 0:
+        raise InvalidOptionError(f"the kernel width rho must be positive, got {rho!r}")
+    return np.sqrt(2.0 * np.pi) * rho * np.exp(-rho * rho * mu / 4.0)
 
 
 def affinity_spectrum(K: np.ndarray, weights: np.ndarray | None, n_eigenvalues: int) -> np.ndarray:
