@@ -362,7 +362,8 @@ register(Filter(
                   "geodesic distance (the thesis used 60 samples); heat: the narrow-kernel limit "
                   "from exact Laplace-Beltrami eigenvalues (ignores samples, geodesics, seed)",
                   choices=("quadrature", "thesis", "heat")),
-        IntParam("n_eigenvalues", 20, "Eigenvalues", "descriptor length (<= n_samples)", min=1),
+        IntParam("n_eigenvalues", 20, "Eigenvalues", "descriptor length (<= n_samples; heat: "
+                 "< the vertex count)", min=1),
         IntParam("n_samples", _evd_samples, "Samples", "max-min samples; keep it fixed across a "
                  "collection", min=1),
         EnumParam("geodesics", DEFAULT_GEODESIC_METHOD, "Geodesic backend", "geodesic backend",

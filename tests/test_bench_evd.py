@@ -26,7 +26,7 @@ def test_bench_evd_writes_the_settings_table(tmp_path, monkeypatch, capsys):
     # two very different classes: every setting ranks a same-class pose first
     assert all(float(r.split("|")[4]) == 1.0 for r in rows)
     assert "First tier per class" in text and "- best scale-invariant row" in text
-    # the exact-spectrum reference row of the scale-invariant width, and the confusion table
+    # the exact-spectrum reference row of the scale-invariant width
     assert any(line.startswith("| exact | area:0.2 |") for line in text.splitlines())
 
 
@@ -81,7 +81,27 @@ def test_most_confused_pair_and_class_separation():
     y = np.array([0.0, 1.0, 10.0, 11.0])  # separated classes: no confusion
     assert most_confused_pair(np.abs(y[:, None] - y[None, :]), ["a", "a", "b", "b"]) == ("", "", 0)
 
+    # labels need not be strings
+    assert most_confused_pair(D, [1, 1, 2, 2, 3, 3])[:2] == ("1", "2")
+
     values = np.array([[10.0, 1.0], [10.0, 3.0], [12.0, 1.0], [12.0, 3.0]])
     gap, spread = class_separation(values, ["a", "a", "b", "b"], "a", "b")
     assert np.allclose(gap, [1 - 10 / 12, 0.0])
     assert np.allclose(spread, [0.0, 0.5])  # std 1 over mean 2 in both classes
+
+
+def test_separation_table_rows_and_missing_values():
+    from geoshape.bench.evd import _separation_table, class_separation
+
+    labels = ["a", "a", "b", "b"]
+    values = np.array([[0.0, 10.0, 1.0], [0.0, 10.0, 3.0], [0.0, 12.0, 1.0], [0.0, 12.0, 3.0]])
+    size = np.array([1.0, 1.0, 2.0, 2.0])
+    text = _separation_table([("eig", values, [(1, 1), (2, 2)]), ("size", size, None)], labels, "a", "b")
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:5]]
+            for line in text.splitlines()[2:]}
+    assert rows["eig, 1–1"] == ["16.7 %", "0.0 %", "n/a"]  # no spread: the ratio is undefined
+    assert rows["eig, 2–2"] == ["0.0 %", "50.0 %", "0.00"]
+    assert rows["size"] == ["50.0 %", "0.0 %", "n/a"]
+    gap, spread = class_separation(values, labels, "a", "b")
+    assert np.isnan(gap[0]) and np.isnan(spread[0])  # zero class means
+    assert np.isnan(class_separation(values, labels, "a", "z")[0]).all()  # a missing class

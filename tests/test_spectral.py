@@ -268,8 +268,6 @@ def test_quadrature_evd_on_the_sphere_has_spherical_harmonic_multiplicities():
 def test_heat_evd_on_the_sphere_is_the_analytic_heat_spectrum():
     """Known answer: on the unit-area sphere μ = 4π l(l + 1) with multiplicity 2l + 1, and
     the heat EVD is sqrt(2π) ρ exp(-ρ² μ / 4), ρ = 0.1; it does not depend on size."""
-    from geoshape.spectral.evd import heat_limit_evd
-
     V, F = icosphere(4)
     heat = evd_descriptor(V, F, config="heat")
     mu = np.repeat([4 * np.pi * l * (l + 1) for l in range(5)], [1, 3, 5, 7, 9])[:20]
@@ -277,8 +275,28 @@ def test_heat_evd_on_the_sphere_is_the_analytic_heat_spectrum():
     # discretisation error grows with the frequency: 0.2 % up to l = 3, 0.5 % at l = 4
     assert np.allclose(heat[:16], analytic[:16], rtol=3e-3)
     assert np.allclose(heat, analytic, rtol=1e-2)
-    assert np.allclose(heat_limit_evd(mu, 0.1), analytic)
     assert np.allclose(evd_descriptor(3.7 * V + 1.0, F, config="heat"), heat, atol=1e-9)
+
+
+def test_heat_limit_is_the_narrow_gaussian_operator_on_the_sphere():
+    """Independent check of the formula: on the unit-area sphere the Gaussian-of-geodesic
+    operator's eigenvalues follow from Funk–Hecke; their square roots equal the heat limit
+    times sqrt(1 − Kσ²/3) (the curvature term, K = 4π) up to O(σ⁴)."""
+    from scipy.integrate import quad
+    from scipy.special import eval_legendre
+
+    from geoshape.spectral.evd import heat_limit_evd
+
+    R, rho = 1 / np.sqrt(4 * np.pi), 0.05
+    exact = []
+    for l in range(5):
+        def integrand(t, l=l):
+            return np.exp(-(R * np.arccos(t)) ** 2 / (2 * rho**2)) * eval_legendre(l, t)
+
+        value, _ = quad(integrand, -1, 1, limit=200, points=[np.cos(8 * rho / R)])
+        exact.append(np.sqrt(2 * np.pi * R**2 * value))
+    heat = heat_limit_evd([4 * np.pi * l * (l + 1) for l in range(5)], rho)
+    assert np.allclose(np.array(exact) / heat, np.sqrt(1 - 4 * np.pi * rho**2 / 3), atol=1.5e-3)
 
 
 def test_heat_evd_retriangulated_copy_close_other_class_far():
@@ -295,12 +313,16 @@ def test_heat_evd_retriangulated_copy_close_other_class_far():
 def test_heat_evd_rejects_sampling_options():
     V, F = icosphere(2)
     for bad in ({"n_samples": 100}, {"sigma": "max"}, {"weighting": "none"}, {"geodesics": "heat"},
-                {"affinity": "euclidean"}):
+                {"p": 2}, {"affinity": "euclidean"}):
         with pytest.raises(InvalidOptionError, match="'heat' EVD samples nothing"):
             evd_descriptor(V, F, config="heat", **bad)
     tetra = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    with pytest.raises(InvalidOptionError, match="more than n_eigenvalues"):
-        evd_descriptor(tetra, [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], config="heat")
+    tetra_faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+    for k in (20, 0, 2.5):
+        with pytest.raises(InvalidOptionError, match="integer n_eigenvalues in \\[1, 3\\]"):
+            evd_descriptor(tetra, tetra_faces, config="heat", n_eigenvalues=k)
+    # a point cloud has no area to weigh samples by, but a point-cloud Laplacian
+    assert evd_descriptor(V, np.zeros((0, 3), int), config="heat").shape == (20,)
 
 
 def test_evd_configurations_and_errors():

@@ -12,14 +12,15 @@ meshes' own units) is *not* scale invariant: it shows how much of the remaining 
 size — TOSCA keeps each character's real size. First tier per class is printed for the
 library default and the best row.
 
-Two reference rows bound what any 20-eigenvalue spectral descriptor can do here: in the
+Reference rows show what exact eigenvalues would give (a reference, not a bound): in the
 narrow-kernel limit the Gaussian affinity operator is ``2πσ²`` times the heat kernel at
 ``t = σ²/2``, whose eigenvalues are ``exp(-σ² μ_k / 2)`` for the Laplace–Beltrami
 eigenvalues ``μ_k``; the rows feed the *exact* ``μ_k`` (robust Laplacian, unit area)
 through that formula — the EVD without sampling or geodesic error, scale invariant
 (``area:ρ``) and size-aware (``abs:S``). Below the table, the two classes the default
-confuses most are compared eigenvalue by eigenvalue: the gap between their class means
-against the spread of each class over its poses, and the same for the size ``√area``.
+confuses most are compared band by band — exact eigenvalues, the exact reference EVD, the
+default's sampled EVD — as the gap between their class means against the spread of one
+class over its poses, and the same for the size ``√area``.
 
 ``geoshape bench evd [DIR]`` writes the section ``evd-settings`` of docs/RESULTS.md.
 """
@@ -158,7 +159,7 @@ def most_confused_pair(D, labels) -> tuple[str, str, int]:
     for i, row in enumerate(order):
         tier = row[: sizes[labels[i]] - 1]
         for other in labels[tier][labels[tier] != labels[i]].tolist():
-            counts[tuple(sorted((str(labels[i]), other)))] += 1
+            counts[tuple(sorted((str(labels[i]), str(other))))] += 1
     if not counts:
         return "", "", 0
     (a, b), c = counts.most_common(1)[0]
@@ -168,37 +169,46 @@ def most_confused_pair(D, labels) -> tuple[str, str, int]:
 def class_separation(values, labels, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:  # noqa: F821
     """Per column of ``values (N, k)``: the relative gap ``|mean_a / mean_b − 1|`` between
     classes ``a`` and ``b``, and their mean coefficient of variation (std / mean within
-    each class, averaged over the two). Both ``(k,)``."""
+    each class, averaged over the two). Both ``(k,)``; NaN where a class mean is 0 or a
+    class is missing. O(N k)."""
     import numpy as np
 
     X = np.asarray(values, dtype=np.float64)
     X = X[:, None] if X.ndim == 1 else X
-    labels = np.asarray(labels)
-    A, B = X[labels == a], X[labels == b]
-    gap = np.abs(A.mean(0) / B.mean(0) - 1.0)
-    spread = 0.5 * (A.std(0) / A.mean(0) + B.std(0) / B.mean(0))
-    return gap, spread
+    labels = np.asarray(labels).astype(str)
+    A, B = X[labels == str(a)], X[labels == str(b)]
+    if len(A) == 0 or len(B) == 0:
+        return np.full(X.shape[1], np.nan), np.full(X.shape[1], np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ma, mb = A.mean(0), B.mean(0)
+        gap = np.where(mb != 0, np.abs(ma / np.where(mb != 0, mb, 1.0) - 1.0), np.nan)
+        cv_a = np.where(ma != 0, A.std(0) / np.where(ma != 0, ma, 1.0), np.nan)
+        cv_b = np.where(mb != 0, B.std(0) / np.where(mb != 0, mb, 1.0), np.nan)
+    return gap, 0.5 * (cv_a + cv_b)
 
 
-def _separation_table(mu_unit, areas, labels, a: str, b: str) -> str:
+def _separation_table(named_values, labels, a: str, b: str) -> str:
+    """Markdown table: per band of columns, the mean class gap, mean spread and their ratio.
+
+    ``named_values``: ``(name, values (N, k), bands)`` triples; ``bands`` lists inclusive
+    ``(first, last)`` column ranges (``None``: the single column 0).
+    """
     import numpy as np
 
     from geoshape.bench.results import markdown_table
 
+    def pct(x):
+        return f"{100 * x:.1f} %" if np.isfinite(x) else "n/a"
+
     def ratio(g, w):
-        return f"{g / w:.2f}" if w > 0 else "∞"
+        return f"{g / w:.2f}" if np.isfinite(g) and np.isfinite(w) and w > 0 else "n/a"
 
     rows = []
-    k = mu_unit.shape[1]
-    bands = [(1, min(5, k - 1)), (6, min(10, k - 1)), (11, k - 1)]
-    gap, spread = class_separation(mu_unit[:, 1:], labels, a, b)
-    for lo, hi in bands:
-        if lo <= hi:
-            g, w = gap[lo - 1:hi].mean(), spread[lo - 1:hi].mean()
-            rows.append([f"Laplace–Beltrami μ{lo}–μ{hi}, unit area (scale invariant)",
-                         f"{100 * g:.1f} %", f"{100 * w:.1f} %", ratio(g, w)])
-    g, w = class_separation(np.sqrt(areas), labels, a, b)
-    rows.append(["size √area", f"{100 * g[0]:.1f} %", f"{100 * w[0]:.1f} %", ratio(g[0], w[0])])
+    for name, values, bands in named_values:
+        gap, spread = class_separation(values, labels, a, b)
+        for lo, hi in bands or [(0, 0)]:
+            g, w = float(gap[lo:hi + 1].mean()), float(spread[lo:hi + 1].mean())
+            rows.append([name if bands is None else f"{name}, {lo}–{hi}", pct(g), pct(w), ratio(g, w)])
     return markdown_table([f"{a} vs {b}", "gap of class means", "spread within a class",
                            "gap / spread"], rows)
 
@@ -239,7 +249,8 @@ def run(args: argparse.Namespace) -> int:
             mu_unit.append(laplacian_basis(V, F, k=N_EIGENVALUES).evals)
         mu_unit = np.array(mu_unit)
         areas = np.array([s["area"] for s in cache])
-        rows, by_class, D_default = [], {}, None
+        rows, by_class = [], {}
+        focus = ref = None  # (name, EVDs, distances) of the default row (else the first); (width, EVDs)
         for l in samples:
             for width in widths:
                 for weighted in (False, True):
@@ -254,8 +265,10 @@ def run(args: argparse.Namespace) -> int:
                                  nearest_neighbor(D, labels), first_tier(D, labels),
                                  mean_average_precision(D, labels), note])
                     by_class[(l, width, weighted)] = first_tier_by_class(D, labels)
-                    if default or D_default is None:  # the default's, else the first row's
-                        D_default = D
+                    if default or focus is None:
+                        name = "library default" if default else f"l = {l}, {width}, weights " + (
+                            "area" if weighted else "none")
+                        focus = (name, X, D)
         for width in [w for w in widths if w.startswith(("area", "abs"))]:
             X = np.array([reference_evd(mu, area, width) for mu, area in zip(mu_unit, areas, strict=True)])
             D = evd_distance_matrix(X)
@@ -264,6 +277,8 @@ def run(args: argparse.Namespace) -> int:
             rows.append(["exact", width, "(heat limit)", nearest_neighbor(D, labels),
                          first_tier(D, labels), mean_average_precision(D, labels), note])
             by_class[("exact", width, False)] = first_tier_by_class(D, labels)
+            if width.startswith("area") and (ref is None or width == "area:0.1"):
+                ref = (width, X)
     seconds = time.perf_counter() - t0
     table = markdown_table(["l", "width", "weights", "NN", "FT", "mAP", ""], rows)
     invariant = [r for r in rows if not str(r[1]).startswith("abs") and r[0] != "exact"]
@@ -276,15 +291,22 @@ def run(args: argparse.Namespace) -> int:
     for name, key in shown:
         if key in by_class:
             lines.append(f"- {name}: " + ", ".join(f"{c} {v:.3f}" for c, v in by_class[key].items()))
-    a, b, confused = most_confused_pair(D_default, labels)
+    a, b, confused = most_confused_pair(focus[2], labels)
     separation = ""
     if confused:
+        k = mu_unit.shape[1]
+        bands = [(lo, min(hi, k - 1)) for lo, hi in ((1, 5), (6, 10), (11, k - 1)) if lo <= k - 1]
+        named = [("Laplace–Beltrami μ, unit area", mu_unit, bands)]
+        if ref is not None:
+            named.append((f"exact reference EVD ({ref[0]}), entries", ref[1], bands))
+        named += [(f"sampled EVD ({focus[0]}), entries", focus[1], bands),
+                  ("size √area", np.sqrt(areas), None)]
         separation = (
-            f"\n\nThe default's most confused classes are {a} and {b} ({confused} first-tier "
-            "places taken by the other class). Per eigenvalue band, the gap between the two class "
-            "means against the spread of one class over its poses (coefficient of variation), "
-            "averaged over the band and the two classes:\n\n"
-            + _separation_table(mu_unit, areas, labels, a, b) + "\n")
+            f"\n\nThe most confused classes of the {focus[0]} row are {a} and {b} ({confused} "
+            "first-tier places taken by the other class). Per band of eigenvalues (entry i of an "
+            "EVD belongs to μ_i), the gap between the two class means against the spread of one "
+            "class over its poses (coefficient of variation), averaged over the band and the two "
+            "classes:\n\n" + _separation_table(named, labels, a, b) + "\n")
     text = (f"## EVD settings on tosca_r5k (thesis §4.6.2)\n\nCommand: `geoshape bench evd` "
             f"({seconds:.0f} s; {machine_note()}). {len(files)} meshes, {len(set(labels))} classes; "
             "graph geodesics, 20 eigenvalues, χ² distance. Widths: `max` = largest sampled geodesic "

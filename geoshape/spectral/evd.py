@@ -37,8 +37,8 @@ import numpy as np
 from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
 
-__all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "evd_descriptor", "affinity_spectrum",
-           "heat_limit_evd", "chi2_distance", "evd_distance_matrix"]
+__all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "EVD_CONFIG_NAMES", "evd_descriptor",
+           "affinity_spectrum", "heat_limit_evd", "chi2_distance", "evd_distance_matrix"]
 
 EVD_N_EIGENVALUES = 20
 #: samples per shape of the default configuration; keep it fixed across a collection
@@ -47,8 +47,9 @@ EVD_N_SAMPLES = 500
 EVD_CONFIGS = {
     "quadrature": {"n_samples": EVD_N_SAMPLES, "sigma": "area", "weighting": "area"},
     "thesis": {"n_samples": 60, "sigma": "max", "weighting": "none"},
-    "heat": {"n_samples": None, "sigma": "area", "weighting": "area"},
 }
+#: every configuration ``evd_descriptor`` takes: the sampled ones and the unsampled "heat"
+EVD_CONFIG_NAMES = (*EVD_CONFIGS, "heat")
 #: width of the quadrature kernel in units of sqrt(surface area)
 AREA_SIGMA = 0.1
 #: rows of the quadrature configuration stop at this many widths
@@ -74,8 +75,9 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     config : {"quadrature", "thesis", "heat"}
         Defaults for ``n_samples``, ``sigma`` and ``weighting`` (see the module notes);
         any of those given explicitly overrides the configuration. ``"heat"`` samples
-        nothing and takes none of ``n_samples``, ``sigma``, ``weighting``, ``geodesics``;
-        its ``affinity`` must be ``"geodesic"`` (it is intrinsic).
+        nothing and takes none of ``n_samples``, ``sigma``, ``weighting``, ``geodesics``,
+        ``p`` (``seed`` is ignored); its ``affinity`` must be ``"geodesic"`` (it is
+        intrinsic). It also works on a point cloud (point-cloud Laplacian).
     n_eigenvalues : int
         Length of the descriptor (20 in the thesis); ``<= n_samples``.
     n_samples : int
@@ -105,25 +107,11 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     from geoshape._options import check_choice
 
     V, F = check_mesh(V, F, allow_no_faces=True)
-    cfg = EVD_CONFIGS[check_choice("EVD configuration", config, tuple(EVD_CONFIGS))]
+    check_choice("EVD configuration", config, EVD_CONFIG_NAMES)
     if config == "heat":
-        given = {"n_samples": n_samples, "sigma": sigma, "weighting": weighting}
-        given = [k for k, v in given.items() if v is not None]
-        if geodesics != "graph":
-            given.append("geodesics")
-        if given or affinity != "geodesic":
-            what = ", ".join(given) if given else f"affinity={affinity!r}"
-            raise InvalidOptionError(
-                f"the 'heat' EVD samples nothing and is intrinsic; it takes no {what} "
-                "(use config='quadrature' to set them)"
-            )
-        from geoshape.spectral.laplacian import laplacian_basis
-
-        if len(V) <= n_eigenvalues:
-            raise InvalidOptionError(
-                f"the 'heat' EVD needs more than n_eigenvalues = {n_eigenvalues} vertices, got {len(V)}"
-            )
-        return heat_limit_evd(laplacian_basis(V, F, k=n_eigenvalues).evals, AREA_SIGMA)
+        return _heat_evd(V, F, n_eigenvalues, n_samples=n_samples, sigma=sigma, weighting=weighting,
+                         geodesics=geodesics, p=p, affinity=affinity)
+    cfg = EVD_CONFIGS[config]
     n_samples = cfg["n_samples"] if n_samples is None else n_samples
     sigma = cfg["sigma"] if sigma is None else sigma
     weighting = check_choice("EVD weighting", cfg["weighting"] if weighting is None else weighting,
@@ -143,7 +131,7 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     if needs_area and len(F) == 0:
         raise InvalidOptionError(
             "the 'quadrature' EVD weights samples by surface area and needs faces; "
-            "for a point cloud use config='thesis'"
+            "for a point cloud use config='heat' or config='thesis'"
         )
     if needs_area:
         vertex_area = _vertex_areas(V, F)
@@ -160,6 +148,27 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
         K, w = _sample_block(V, F, n_samples, affinity, sigma, width,
                              vertex_area if weighting == "area" else None, geodesics, p, seed)
     return affinity_spectrum(K, w, n_eigenvalues)
+
+
+def _heat_evd(V, F, n_eigenvalues, *, affinity, **sampling) -> np.ndarray:
+    """The "heat" configuration: check that no sampling option was given, then
+    :func:`heat_limit_evd` of the unit-area Laplace–Beltrami eigenvalues."""
+    from geoshape.spectral.laplacian import laplacian_basis
+
+    defaults = {"n_samples": None, "sigma": None, "weighting": None, "geodesics": "graph", "p": 1}
+    given = [name for name, value in sampling.items() if value != defaults[name]]
+    if given or affinity != "geodesic":
+        what = ", ".join(given) if given else f"affinity={affinity!r}"
+        raise InvalidOptionError(
+            f"the 'heat' EVD samples nothing and is intrinsic; it takes no {what} "
+            "(use config='quadrature' to set them)"
+        )
+    if not isinstance(n_eigenvalues, (int, np.integer)) or not 1 <= n_eigenvalues < len(V):
+        raise InvalidOptionError(
+            f"the 'heat' EVD needs an integer n_eigenvalues in [1, {len(V) - 1}] (fewer than the "
+            f"{len(V)} vertices), got {n_eigenvalues!r}"
+        )
+    return heat_limit_evd(laplacian_basis(V, F, k=int(n_eigenvalues)).evals, AREA_SIGMA)
 
 
 def heat_limit_evd(mu_unit, rho: float = AREA_SIGMA) -> np.ndarray:
@@ -186,8 +195,8 @@ def heat_limit_evd(mu_unit, rho: float = AREA_SIGMA) -> np.ndarray:
     array([2.50662827])
     """
     mu = np.maximum(np.asarray(mu_unit, dtype=np.float64), 0.0)
-    if not rho > 0:
-        raise InvalidOptionError(f"the kernel width rho must be positive, got {rho!r}")
+    if not isinstance(rho, (int, float, np.integer, np.floating)) or not rho > 0:
+        raise InvalidOptionError(f"the kernel width rho must be a positive number, got {rho!r}")
     return np.sqrt(2.0 * np.pi) * rho * np.exp(-rho * rho * mu / 4.0)
 
 
