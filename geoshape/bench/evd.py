@@ -179,12 +179,10 @@ def class_separation(values, labels, a: str, b: str) -> tuple[np.ndarray, np.nda
     A, B = X[labels == str(a)], X[labels == str(b)]
     if len(A) == 0 or len(B) == 0:
         return np.full(X.shape[1], np.nan), np.full(X.shape[1], np.nan)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ma, mb = A.mean(0), B.mean(0)
-        gap = np.where(mb != 0, np.abs(ma / np.where(mb != 0, mb, 1.0) - 1.0), np.nan)
-        cv_a = np.where(ma != 0, A.std(0) / np.where(ma != 0, ma, 1.0), np.nan)
-        cv_b = np.where(mb != 0, B.std(0) / np.where(mb != 0, mb, 1.0), np.nan)
-    return gap, 0.5 * (cv_a + cv_b)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero mean: inf or nan, reported as nan
+        gap = np.abs(A.mean(0) / B.mean(0) - 1.0)
+        spread = 0.5 * (A.std(0) / A.mean(0) + B.std(0) / B.mean(0))
+    return np.where(np.isfinite(gap), gap, np.nan), np.where(np.isfinite(spread), spread, np.nan)
 
 
 def _separation_table(named_values, labels, a: str, b: str) -> str:
