@@ -13,6 +13,7 @@ import numpy as np
 from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, DEFAULT_METHOD
 from geoshape.geometry.geodesics import DEFAULT_GEODESIC_METHOD, GEODESIC_METHODS
 from geoshape.spectral.embedding import EMBEDDING_METHODS, SCALINGS
+from geoshape.spectral.evd import EVD_CONFIG_NAMES
 from plugins.params import (
     BoolParam,
     EnumParam,
@@ -361,7 +362,7 @@ register(Filter(
                   "geodesic Voronoi areas, sigma = 0.1 sqrt(area); thesis: unweighted, sigma = max "
                   "geodesic distance (the thesis used 60 samples); heat: the narrow-kernel limit "
                   "from exact Laplace-Beltrami eigenvalues (ignores samples, geodesics, seed)",
-                  choices=("quadrature", "thesis", "heat")),
+                  choices=EVD_CONFIG_NAMES),
         IntParam("n_eigenvalues", 20, "Eigenvalues", "descriptor length (<= n_samples; heat: "
                  "< the vertex count)", min=1),
         IntParam("n_samples", _evd_samples, "Samples", "max-min samples; keep it fixed across a "

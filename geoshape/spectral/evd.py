@@ -2,7 +2,7 @@
 
 The descriptor of a shape is ``sqrt(|lambda_i|)`` of the first twenty eigenvalues of the
 Gaussian geodesic affinity of ``l`` max-min samples — the Nyström sample block. Compare
-descriptors with :func:`chi2_distance`. Two configurations:
+descriptors with :func:`chi2_distance`. Three configurations:
 
 ``"quadrature"`` (default)
     ``l = 500`` samples, each weighted by the area of its geodesic Voronoi cell, width
