@@ -12,8 +12,8 @@ import numpy as np
 
 from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, DEFAULT_METHOD
 from geoshape.geometry.geodesics import DEFAULT_GEODESIC_METHOD, GEODESIC_METHODS
+from geoshape.retrieval.descriptors.evd import EVD_CONFIG_NAMES
 from geoshape.spectral.embedding import EMBEDDING_METHODS, SCALINGS
-from geoshape.spectral.evd import EVD_CONFIG_NAMES
 from plugins.params import (
     BoolParam,
     EnumParam,
@@ -65,7 +65,7 @@ def _other_mesh(ms) -> int:
 
 def _evd_samples(ms) -> int:
     """min(500 (the library default), number of vertices of the current mesh)"""
-    from geoshape.spectral.evd import EVD_N_SAMPLES
+    from geoshape.retrieval.descriptors.evd import EVD_N_SAMPLES
 
     if ms is None or not len(ms):
         return EVD_N_SAMPLES
@@ -141,7 +141,7 @@ register(Filter(
 
 # ---- spectral_embedding -------------------------------------------------------------
 def _spectral_apply(ms, p, progress):
-    from geoshape.spectral.render import embedding_vertices
+    from geoshape.spectral.embedded_mesh import embedding_vertices
 
     mesh = ms.current_mesh()
     progress(0.0, "spectral embedding")
@@ -183,7 +183,7 @@ register(Filter(
 
 # ---- eigenvector_colormap -----------------------------------------------------------
 def _eigencolor_apply(ms, p, progress):
-    from geoshape.colormap import scalar_colors
+    from geoshape.plot.colormap import scalar_colors
 
     mesh = ms.current_mesh()
     k = max(5, p["index"] + 1)  # same cache entry as spectral_embedding's default k = 5
@@ -215,8 +215,8 @@ register(Filter(
 
 # ---- spectral_correspondence ----------------------------------------------------------
 def _correspondence_apply(ms, p, progress):
-    from geoshape.colormap import position_colors
     from geoshape.correspondence.mesh_matching import correspond
+    from geoshape.plot.colormap import position_colors
 
     src_index, tgt_index = ms.current_index, p["target"]
     if tgt_index == src_index:
@@ -339,7 +339,7 @@ register(Filter(
 
 # ---- evd_descriptor -------------------------------------------------------------------
 def _evd_apply(ms, p, progress):
-    from geoshape.spectral.evd import evd_descriptor
+    from geoshape.retrieval.descriptors.evd import evd_descriptor
 
     mesh = ms.current_mesh()
     if p["config"] == "heat":  # no samples and no geodesics: the other options do not apply

@@ -34,7 +34,7 @@ def test_weighted_settings_match_the_library_descriptor():
     """The bench's cached computation is the library's quadrature EVD (same samples, same cells)."""
     import trimesh
 
-    from geoshape.spectral import evd
+    from geoshape.retrieval.descriptors import evd
 
     m = trimesh.creation.icosphere(3)
     cache = mesh_samples(m.vertices, m.faces, 80, prefixes=(50, 80))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoshape.correspondence.contour_descriptors import (
+from geoshape.contour.descriptors import (
     curvature_map,
     geodesic_bin_edges,
     geodesic_shape_context,

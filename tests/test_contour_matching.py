@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoshape.correspondence.contour_matching import (
+from geoshape.contour.matching import (
     batch_match_costs,
     best_match,
     cyclic_dp_match,
@@ -13,9 +13,9 @@ from geoshape.correspondence.contour_matching import (
     proximity_anchors,
     proximity_match,
 )
-from geoshape.correspondence.contour_methods import METHODS, match_contours, method_spec
+from geoshape.contour.methods import METHODS, match_contours, method_spec
+from geoshape.contour.retrieval import shape_distance_matrix
 from geoshape.errors import GeoshapeError, InvalidContourError, InvalidOptionError
-from geoshape.retrieval.contours import shape_distance_matrix
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_proximity_anchors_hand_made():
 
 
 def test_proximity_anchors_on_a_known_pair(silhouette_contour):
-    from geoshape.correspondence.contour_descriptors import geodesic_shape_context
+    from geoshape.contour.descriptors import geodesic_shape_context
     from geoshape.geometry.contour import arc_length, perimeter
 
     P = silhouette_contour

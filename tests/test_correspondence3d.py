@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
+from geoshape.correspondence.anchors import anchored_match, proximity_anchors
 from geoshape.correspondence.mesh_matching import correspond
 from geoshape.correspondence.orientation import orientation_score, patch_orientation_score
-from geoshape.correspondence.proximity import proximity_anchors, proximity_match
 from geoshape.correspondence.reorder import align_embeddings
 from geoshape.correspondence.tps import fit_tps
 from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
@@ -121,7 +121,7 @@ def test_proximity_anchors_on_a_known_pair():
     assert len({i for i, _ in anchors}) == 3
     d12 = arc(anchors[0][0])[anchors[1][0]]
     assert d12 > n / 8  # the second anchor is pushed away from the first
-    assert np.array_equal(proximity_match(A, A, G1, G2), np.arange(n))
+    assert np.array_equal(anchored_match(A, A, G1, G2), np.arange(n))
 
 
 def test_orientation_tells_a_map_from_its_mirror():

@@ -1,4 +1,4 @@
-"""Descriptor functional maps with an orientation term (geoshape.correspondence.descriptor_fmap)."""
+"""Descriptor functional maps with an orientation term (geoshape.correspondence.fmaps.descriptor_fmap)."""
 
 from __future__ import annotations
 
@@ -7,15 +7,15 @@ import functools
 import numpy as np
 import pytest
 
-from geoshape.correspondence.descriptor_fmap import (
+from geoshape.correspondence.fmaps.descriptor_fmap import (
     _commutator_normal_matrix,
     descriptor_functional_map,
     descriptor_operators,
     orientation_operators,
     wave_kernel_signature,
 )
+from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
 from geoshape.correspondence.orientation import orientation_score
-from geoshape.correspondence.zoomout import p2p_from_functional_map
 from geoshape.errors import InvalidOptionError
 from geoshape.spectral.laplacian import laplacian_basis
 

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from conftest import grid_mesh, icosphere, shared_dataset
 
-from geoshape.correspondence.evaluation import (
+from geoshape.errors import GeoshapeError, InvalidOptionError
+from geoshape.metrics import retrieval as M
+from geoshape.metrics.correspondence import (
     GeodesicErrorEvaluator,
     cumulative_error_curve,
     geodesic_errors,
     plot_error_curves,
 )
-from geoshape.errors import GeoshapeError, InvalidOptionError
-from geoshape.retrieval import metrics as M
 
 
 def line_matrix(x):

@@ -110,7 +110,7 @@ def test_distance_matrix_symmetric_zero_diagonal():
 
 
 def test_lfd_view_permutations_form_the_rotation_group():
-    from geoshape.retrieval.lfd import dodecahedron_axes, dodecahedron_view_permutations
+    from geoshape.retrieval.descriptors.lfd import dodecahedron_axes, dodecahedron_view_permutations
 
     P = dodecahedron_view_permutations()
     assert P.shape == (60, 10)
@@ -121,7 +121,7 @@ def test_lfd_view_permutations_form_the_rotation_group():
 
 
 def test_rasterizer_fills_a_square():
-    from geoshape.retrieval.lfd import rasterize_triangles
+    from geoshape.retrieval.descriptors.lfd import rasterize_triangles
 
     P = np.array([[2.0, 2.0], [12.0, 2.0], [12.0, 12.0], [2.0, 12.0]])
     mask = rasterize_triangles(P, np.array([[0, 1, 2], [0, 2, 3]]), 16)

@@ -49,7 +49,7 @@ def test_unknown_class():
 
 def test_bent_shapes_retrieve_their_own_class_first(tmp_path):
     """Bending robustness: for every pose, the nearest other shape is a pose of its class."""
-    from geoshape.retrieval.contours import retrieval_on_folder
+    from geoshape.contour.retrieval import retrieval_on_folder
 
     generate_silhouettes(tmp_path, per_class=3, seed=2)
     res = retrieval_on_folder(tmp_path, "default", backend="serial")

@@ -10,6 +10,7 @@ from conftest import grid_mesh, icosphere
 from scipy.linalg import subspace_angles
 
 from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
+from geoshape.retrieval.descriptors.evd import chi2_distance, evd_descriptor, evd_distance_matrix
 from geoshape.spectral.affinity import gaussian_affinity, parse_sigma, resolve_sigma
 from geoshape.spectral.embedding import (
     embedding_from_affinity,
@@ -17,7 +18,6 @@ from geoshape.spectral.embedding import (
     scale_eigenvectors,
     spectral_embedding,
 )
-from geoshape.spectral.evd import chi2_distance, evd_descriptor, evd_distance_matrix
 from geoshape.spectral.nystrom import nystrom_eigenpairs
 
 
@@ -285,7 +285,7 @@ def test_heat_limit_is_the_narrow_gaussian_operator_on_the_sphere():
     from scipy.integrate import quad
     from scipy.special import eval_legendre
 
-    from geoshape.spectral.evd import heat_limit_evd
+    from geoshape.retrieval.descriptors.evd import heat_limit_evd
 
     R, rho = 1 / np.sqrt(4 * np.pi), 0.05
     exact = []

@@ -3,7 +3,7 @@
 For each pair of ``DIR/pairs.csv`` (or ``--pairs``) and each method: the map is computed
 end to end (meshes loaded, every per-mesh precomputation included — nothing is cached
 across pairs, so times are honest per-pair times), then scored by the geodesic error on
-the target divided by √area (:mod:`geoshape.correspondence.evaluation`), direct and
+the target divided by √area (:mod:`geoshape.metrics.correspondence`), direct and
 symmetry-aware. Landmark ground truth (``.vts``) is subsampled to ``--landmarks`` seeded
 landmarks per pair; identity ground truth uses the same number of random vertices.
 SCAPE (identity ids) has no mirrored map of all vertices: its symmetry-aware score uses
@@ -100,11 +100,11 @@ def _run(args: argparse.Namespace) -> int:
     from geoshape._options import check_choice
     from geoshape.bench.experiments._common import machine_note
     from geoshape.bench.results import markdown_table, update_results_section
-    from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors, plot_error_curves
     from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, correspond
     from geoshape.errors import GeoshapeError
     from geoshape.io.datasets import read_pairs
     from geoshape.io.mesh_io import load_mesh
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors, plot_error_curves
 
     folder = Path(args.dir)
     methods = [m for m in args.methods.split(",") if m]

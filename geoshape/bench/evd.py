@@ -76,7 +76,7 @@ def mesh_samples(V, F, n_samples: int, prefixes=()) -> dict:
 
     from geoshape.geometry.graph import structural_graph
     from geoshape.geometry.sampling import geodesic_voronoi_sampling
-    from geoshape.spectral.evd import _vertex_areas
+    from geoshape.retrieval.descriptors.evd import _vertex_areas
 
     graph = structural_graph(V, F, 1)
     samples, owner, _ = geodesic_voronoi_sampling(graph, n_samples)
@@ -95,7 +95,7 @@ def evd_from_samples(s: dict, l: int, width: str, weighted: bool) -> np.ndarray:
     """The EVD of one mesh for one setting, from :func:`mesh_samples` output."""
     import numpy as np
 
-    from geoshape.spectral.evd import affinity_spectrum
+    from geoshape.retrieval.descriptors.evd import affinity_spectrum
 
     D = s["D"][:l, :l]
     kind, rho = parse_width(width)
@@ -126,11 +126,11 @@ def reference_evd(mu_unit, area: float, width: str) -> np.ndarray:  # noqa: F821
     Returns
     -------
     evd : (k,) float64
-        :func:`geoshape.spectral.evd.heat_limit_evd` at ``ρ``, or at ``S / √area``. O(k).
+        :func:`geoshape.retrieval.descriptors.evd.heat_limit_evd` at ``ρ``, or at ``S / √area``. O(k).
     """
     import numpy as np
 
-    from geoshape.spectral.evd import heat_limit_evd
+    from geoshape.retrieval.descriptors.evd import heat_limit_evd
 
     kind, rho = parse_width(width)
     if kind not in ("area", "abs"):
@@ -221,14 +221,14 @@ def run(args: argparse.Namespace) -> int:
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.io.datasets import dataset_dir, read_labels
     from geoshape.io.mesh_io import load_mesh
-    from geoshape.retrieval.meshes import single_thread_blas
-    from geoshape.retrieval.metrics import (
+    from geoshape.metrics.retrieval import (
         first_tier,
         first_tier_by_class,
         mean_average_precision,
         nearest_neighbor,
     )
-    from geoshape.spectral.evd import EVD_N_SAMPLES, evd_distance_matrix
+    from geoshape.retrieval.descriptors.evd import EVD_N_SAMPLES, evd_distance_matrix
+    from geoshape.retrieval.meshes import single_thread_blas
     from geoshape.spectral.laplacian import laplacian_basis
 
     folder = dataset_dir("tosca_r5k", required=True) if args.dir is None else args.dir

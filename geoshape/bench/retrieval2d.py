@@ -27,10 +27,10 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
 
     from geoshape._options import check_choice
     from geoshape.bench.results import update_results_section
-    from geoshape.correspondence.contour_methods import METHODS
+    from geoshape.contour.methods import METHODS
+    from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.io.atomic import save_npy_atomic
     from geoshape.io.datasets import dataset_dir
-    from geoshape.retrieval.contours import retrieval_on_folder
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:

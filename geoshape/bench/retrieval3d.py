@@ -101,8 +101,8 @@ def _evd_hires(n: int) -> dict:
 
     from geoshape.io.datasets import dataset_dir
     from geoshape.io.mesh_io import load_mesh
+    from geoshape.retrieval.descriptors.evd import evd_descriptor
     from geoshape.retrieval.meshes import single_thread_blas
-    from geoshape.spectral.evd import evd_descriptor
 
     folder = dataset_dir("tosca_hires", required=False)
     if folder is None or n < 1:
@@ -133,9 +133,9 @@ def run(args) -> int:
 
     from geoshape.bench.results import default_results_path, update_results_section
     from geoshape.io.datasets import dataset_dir
+    from geoshape.metrics.retrieval import plot_precision_recall
     from geoshape.retrieval.descriptors import DESCRIPTORS, RERANKERS
     from geoshape.retrieval.meshes import retrieval3d_on_folder
-    from geoshape.retrieval.metrics import plot_precision_recall
 
     methods = _methods(args)
     affinities = [a.strip() for a in args.affinities.split(",") if a.strip()]
@@ -221,7 +221,7 @@ def _section(state, args, stamp, workers, machine) -> str:
         lines.append(f"EVD on tosca_hires ({hires['n']} meshes, {hires['vertices']} vertices, "
                      f"one thread): mean {hires['mean_s']:.2f} s, max {hires['max_s']:.2f} s per mesh; "
                      f"evd_heat mean {hires['heat_mean_s']:.2f} s, max {hires['heat_max_s']:.2f} s.")
-    from geoshape.spectral.evd import EVD_N_SAMPLES
+    from geoshape.retrieval.descriptors.evd import EVD_N_SAMPLES
 
     lines += ["", NOTES.format(samples=EVD_N_SAMPLES)]
     return "\n".join(lines) + "\n"

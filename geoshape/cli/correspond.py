@@ -56,11 +56,11 @@ def run_single(args: argparse.Namespace) -> int:
     result = correspond(V1, F1, V2, F2, method=args.method, seed=args.seed)
     write_map(args.out, result.p2p_12)
     if args.plot:
-        from geoshape.correspondence.plot3d import plot_correspondence
+        from geoshape.plot.correspondence import plot_correspondence
 
         plot_correspondence(args.plot, V1, F1, V2, F2, result.p2p_12, title=f"{args.method}")
     if args.ply:
-        from geoshape.correspondence.plot3d import transferred_colors
+        from geoshape.plot.correspondence import transferred_colors
 
         save_mesh(args.ply, V1, F1, colors=transferred_colors(V2, result.p2p_12)[0])
     summary = {"source": args.source, "target": args.target, "method": result.method,

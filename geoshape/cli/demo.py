@@ -33,13 +33,13 @@ def run(args) -> int:
     from datasets_gen.silhouettes2d import generate_silhouettes
     from geoshape.bench.results import markdown_table
     from geoshape.cli._common import to_jsonable
-    from geoshape.correspondence.contour_methods import METHODS, match_contours, method_spec
+    from geoshape.contour.methods import METHODS, match_contours, method_spec
+    from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.errors import InvalidOptionError
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
     from geoshape.io.silhouette import contour_from_image
-    from geoshape.plot2d import plot_contour_matching, plot_distance_matrix
-    from geoshape.retrieval.contours import retrieval_on_folder
-    from geoshape.retrieval.metrics import retrieval_metrics
+    from geoshape.metrics.retrieval import retrieval_metrics
+    from geoshape.plot.contours import plot_contour_matching, plot_distance_matrix
 
     method_spec(args.method)
     if args.per_class < 2:
@@ -107,7 +107,7 @@ def _demo_3d(out, seed: int) -> dict:
     from datasets_gen.articulated3d import generate_figure
     from geoshape.correspondence.map_io import write_map
     from geoshape.correspondence.mesh_matching import correspond
-    from geoshape.correspondence.plot3d import plot_correspondence
+    from geoshape.plot.correspondence import plot_correspondence
 
     fig = generate_figure("biped", poses=2, seed=seed, target_vertices=1500, resolution=96)
     V1, V2, F = fig.poses[0], fig.poses[1], fig.F

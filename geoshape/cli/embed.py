@@ -54,9 +54,10 @@ def run(args: argparse.Namespace) -> int:
 
     from geoshape.cli._common import print_json
     from geoshape.io.mesh_io import load_mesh
+    from geoshape.plot.meshes import render_mesh_png
     from geoshape.spectral.affinity import parse_sigma
+    from geoshape.spectral.embedded_mesh import save_embedding_mesh, sidecar_path
     from geoshape.spectral.embedding import spectral_embedding
-    from geoshape.spectral.render import render_mesh_png, save_embedding_mesh, sidecar_path
 
     sigma = parse_sigma(args.sigma)
     V, F = load_mesh(args.mesh)

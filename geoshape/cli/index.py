@@ -135,7 +135,7 @@ def run_query(args) -> int:
                                       seed=args.seed, rerank=args.rerank, rerank_k=args.rerank_k)
     if args.plot_strip:
         from geoshape.io.datasets import mesh_stem
-        from geoshape.retrieval.plots3d import plot_query_strip
+        from geoshape.plot.retrieval import plot_query_strip
 
         plot_query_strip((V, F), [load_mesh(h.path) for h in hits], args.plot_strip,
                          query_title=mesh_stem(args.mesh),

@@ -28,7 +28,7 @@ def run(args) -> int:
 
     import numpy as np
 
-    from geoshape.correspondence.contour_methods import match_contours, method_spec
+    from geoshape.contour.methods import match_contours, method_spec
     from geoshape.io.atomic import write_text_atomic
     from geoshape.io.silhouette import contour_from_image
 
@@ -45,7 +45,7 @@ def run(args) -> int:
     if args.plot:
         from pathlib import Path
 
-        from geoshape.plot2d import plot_contour_matching
+        from geoshape.plot.contours import plot_contour_matching
 
         title = f"{Path(args.image_a).name} ↔ {Path(args.image_b).name}  ({args.method}, cost {cost:.4g})"
         plot_contour_matching(P, Q, p2p, args.plot, title=title)

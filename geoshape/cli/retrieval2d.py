@@ -29,9 +29,9 @@ def run(args) -> int:
     import json
 
     from geoshape.cli._common import to_jsonable
-    from geoshape.correspondence.contour_methods import method_spec
+    from geoshape.contour.methods import method_spec
+    from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
-    from geoshape.retrieval.contours import retrieval_on_folder
 
     method_spec(args.method)
     if args.backend is not None:
@@ -61,7 +61,7 @@ def run(args) -> int:
     if args.json:
         write_text_atomic(args.json, json.dumps(to_jsonable(summary), indent=2) + "\n")
     if args.plot:
-        from geoshape.plot2d import plot_distance_matrix
+        from geoshape.plot.contours import plot_distance_matrix
 
         plot_distance_matrix(result["D"], args.plot, labels=result["labels"],
                              title=f"{args.method} ({summary['n']} shapes)")

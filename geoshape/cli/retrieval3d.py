@@ -88,11 +88,11 @@ def run(args) -> int:
         write_text_atomic(args.json, json.dumps(to_jsonable(summary), indent=2) + "\n")
     name = args.descriptor + (f" ({args.affinity})" if args.affinity else "")
     if args.plot_pr and m:
-        from geoshape.retrieval.metrics import plot_precision_recall
+        from geoshape.metrics.retrieval import plot_precision_recall
 
         plot_precision_recall({name: m}, args.plot_pr, title=f"{name}, {summary['n']} meshes")
     if args.plot_matrix:
-        from geoshape.retrieval.plots3d import plot_similarity_matrix
+        from geoshape.plot.retrieval import plot_similarity_matrix
 
         plot_similarity_matrix(res["D"], args.plot_matrix, labels=res["labels"],
                                title=f"{name} ({summary['n']} meshes)")

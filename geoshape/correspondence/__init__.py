@@ -1,1 +1,1 @@
-"""Everything about two shapes: 2D descriptors and matchers, 3D spectral correspondence."""
+"""Two 3D meshes: candidate alignments, functional-map refinement, the method registry, batches, map files."""

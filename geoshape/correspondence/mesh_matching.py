@@ -14,7 +14,7 @@ Methods (``CORRESPONDENCE_METHODS``):
   mirrored map followed by mesh 2's own left-right symmetry (mesh 2 matched to itself)
   is tried as well ("symmetry completion"). One more candidate comes from wave kernel
   signatures with an orientation-preserving term
-  (:mod:`~geoshape.correspondence.descriptor_fmap`), which tells front from back where
+  (:mod:`~geoshape.correspondence.fmaps.descriptor_fmap`), which tells front from back where
   the low eigenvectors cannot. Above 8000 vertices the intermediate maps live on samples
   only (large-mesh mode).
 - ``jz``: the thesis pipeline, faithfully: geodesic Gaussian affinity (σ = max
@@ -40,10 +40,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoshape._options import check_choice
+from geoshape.correspondence.anchors import anchored_match, proximity_anchors
 from geoshape.correspondence.icp import nonrigid_icp, rigid_icp
 from geoshape.correspondence.nn import nearest
 from geoshape.correspondence.orientation import orientation_score
-from geoshape.correspondence.proximity import proximity_anchors, proximity_match
 from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
 from geoshape.errors import InvalidMeshError, InvalidOptionError
 from geoshape.io.validate import check_mesh
@@ -138,7 +138,7 @@ class PreparedMesh:
 
     def descriptor_operators(self, k: int, lb_k: int):
         """Wave kernel signature operators in the first ``k`` of ``lb_k`` eigenvectors, cached."""
-        from geoshape.correspondence.descriptor_fmap import descriptor_operators
+        from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_operators
 
         return self.cached(("descriptor_operators", k, lb_k), lambda: descriptor_operators(
             self.V, self.F, self.laplacian(lb_k), k=k))
@@ -221,7 +221,7 @@ def _jz(m1, m2, *, k=5, reorder="exhaustive", icp_iterations=8, n_controls=300, 
     elif proximity and anchors > 0:
         pairs, G1, G2 = proximity_anchors(A, Bw, m1.geodesic_row, m2.geodesic_row,
                                           n_anchors=anchors, n_candidates=n_candidates)
-        p2p = proximity_match(A, Bw, G1, G2, n_candidates=n_candidates)
+        p2p = anchored_match(A, Bw, G1, G2, n_candidates=n_candidates)
         details["anchors"] = pairs
     else:
         p2p = nearest(Bw, A)[1]
@@ -282,9 +282,9 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     # every option, for the symmetry-completion call below (first statement: only the
     # parameters are local yet)
     settings = {name: value for name, value in locals().items() if name not in ("m1", "m2")}
+    from geoshape.correspondence.fmaps.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
     from geoshape.correspondence.reorder import embedding_samples
-    from geoshape.correspondence.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
 
     timings = {}
     A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=n_keep,
@@ -380,8 +380,8 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     #     (descriptor_fmap): low eigenvectors of a body do not tell front from back, and
     #     the front-back mirror composed with the left-right one keeps orientation
     if descriptor_map and min(descriptor_k, lb_k) >= 3:
-        from geoshape.correspondence.descriptor_fmap import descriptor_functional_map
-        from geoshape.correspondence.zoomout import p2p_from_functional_map
+        from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_functional_map
+        from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
 
         t = time.perf_counter()
         kd = min(descriptor_k, lb_k)

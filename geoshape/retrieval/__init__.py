@@ -1,1 +1,1 @@
-"""Shape descriptors, pairwise distances, all-pairs matrices, the persistent index, metrics."""
+"""3D retrieval: global mesh descriptors and their registry, all-pairs matrices, the persistent index."""

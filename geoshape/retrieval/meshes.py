@@ -191,10 +191,10 @@ def retrieval3d_on_folder(folder: str | os.PathLike, method: str, *, affinity: s
     -------
     dict
         As :func:`retrieval3d_matrix` plus ``files`` (relative to ``folder``), ``labels``
-        and ``metrics`` (:func:`geoshape.retrieval.metrics.retrieval_metrics`).
+        and ``metrics`` (:func:`geoshape.metrics.retrieval.retrieval_metrics`).
     """
     from geoshape.io.datasets import read_labels
-    from geoshape.retrieval.metrics import retrieval_metrics
+    from geoshape.metrics.retrieval import retrieval_metrics
 
     items = read_labels(folder)
     out = retrieval3d_matrix([it.path for it in items], method, affinity=affinity, seed=seed,

@@ -1,1 +1,1 @@
-"""Affinities, spectral embeddings (dense, partial, Nyström), eigenvalue scaling, EVD."""
+"""Affinities, spectral embeddings (dense, partial, Nyström), Laplace–Beltrami bases, the embedded mesh."""

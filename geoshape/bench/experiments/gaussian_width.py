@@ -108,8 +108,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
 
     from datasets_gen.spikes import add_spikes
     from geoshape.bench.experiments import _common as c
-    from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.correspondence.mesh_matching import PreparedMesh, correspond
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.spectral.affinity import parse_sigma
 
     spikes = c.parse_list(spikes, int)

@@ -91,8 +91,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
     from datasets_gen.decimate import decimate_exact
     from geoshape._options import check_choice
     from geoshape.bench.experiments import _common as c
-    from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.correspondence.mesh_matching import PreparedMesh, correspond
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.spectral.embedding import SCALINGS as ALL_SCALINGS
 
     ratios = c.parse_list(ratios, float)

@@ -109,8 +109,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices=B
 
     from geoshape._options import check_choice
     from geoshape.bench.experiments import _common as c
-    from geoshape.correspondence.evaluation import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, PreparedMesh, correspond
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
 
     methods = c.names(methods)
     for m in methods:

@@ -256,7 +256,7 @@ def _plot(tiles, k, path):
     from matplotlib.figure import Figure
 
     from geoshape.bench.experiments._common import save_figure
-    from geoshape.spectral.render import render_mesh_png
+    from geoshape.plot.meshes import render_mesh_png
 
     fig = Figure(figsize=(1.5 * k, 1.75 * len(tiles)))
     with tempfile.TemporaryDirectory() as tmp:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.correspondence.shape_context import contour_tangent_angles, log_polar_histograms
+from geoshape.contour.shape_context import contour_tangent_angles, log_polar_histograms
 from geoshape.io.validate import check_contour
 
 __all__ = ["visibility_graph", "inner_distances", "inner_distance_shape_context"]
@@ -146,7 +146,7 @@ def inner_distance_shape_context(P, *, n_r: int = 8, n_theta: int = 12, r_inner:
                                  r_outer: float = 2.0) -> np.ndarray:
     """Inner-distance shape context of every point of a contour.
 
-    Log-polar histograms (as :func:`geoshape.correspondence.shape_context.shape_context`) of
+    Log-polar histograms (as :func:`geoshape.contour.shape_context.shape_context`) of
     the inner distances (normalised by their mean) and inner angles (first path segment,
     measured from the tangent at the point).
 

@@ -1,4 +1,5 @@
-"""Proximity-aided matching with anchor pairs (thesis §3.1.3 in 2D, §4.3 step 5 in 3D).
+"""Proximity anchors between two 3D embeddings and the anchored match (thesis §4.3 step 5;
+the 2D proximity heuristic of §3.1.3 is :func:`geoshape.contour.matching.proximity_match`).
 
 Anchors: the pair of smallest embedding distance, then pairs penalised for lying near
 the previous anchors (minus half the normalised geodesic distance to the nearest one). Each
@@ -65,7 +66,7 @@ def proximity_anchors(A, B, geodesic1: Callable[[int], np.ndarray], geodesic2: C
     return anchors, np.asarray(G1), np.asarray(G2)
 
 
-def proximity_match(A, B, G1, G2, *, alphas=None, n_candidates: int = 20) -> np.ndarray:
+def anchored_match(A, B, G1, G2, *, alphas=None, n_candidates: int = 20) -> np.ndarray:
     """Rescore each vertex's embedding neighbours with the anchor-distance term; return p2p_12."""
     h = len(G1)
     alphas = np.ones(h) if alphas is None else np.asarray(alphas, dtype=np.float64)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geoshape.correspondence.contour_methods import (
+from geoshape.contour.methods import (
     DEFAULT_METHOD,
     contour_signature,
     method_spec,
@@ -76,7 +76,7 @@ def shape_distance_matrix(contours, method: str = DEFAULT_METHOD, *, backend: st
         Closed counter-clockwise contours, all with the same number of points (the
         matching is batched over stacked descriptors).
     method : str
-        A key of :data:`geoshape.correspondence.contour_methods.METHODS`.
+        A key of :data:`geoshape.contour.methods.METHODS`.
     backend : {"processes", "serial", "dask"} or None
         How the work is spread (:mod:`geoshape.parallel`); ``None`` = processes on all cores.
     n_jobs : int, optional
@@ -148,13 +148,13 @@ def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int =
     -------
     dict
         ``D`` (N, N) in ``labels.csv`` row order, ``files``, ``labels``, ``metrics``
-        (:func:`geoshape.retrieval.metrics.retrieval_metrics`), ``seconds`` (wall time of
+        (:func:`geoshape.metrics.retrieval.retrieval_metrics`), ``seconds`` (wall time of
         the descriptors plus all-pairs matching, image reading excluded), ``method``.
     """
     import time
 
     from geoshape.io.datasets import read_labels
-    from geoshape.retrieval.metrics import retrieval_metrics
+    from geoshape.metrics.retrieval import retrieval_metrics
 
     spec = method_spec(method, **options)
     items = read_labels(folder)

@@ -16,7 +16,7 @@ On the 3D spectral embedding (thesis Fig. 4.10)
     and scale themselves.
 Spectral
     ``evd``: √ of the first 20 eigenvalues of the Nyström sample affinity, χ²
-    (:mod:`geoshape.spectral.evd`) — by default the area-weighted "quadrature"
+    (:mod:`geoshape.retrieval.descriptors.evd`) — by default the area-weighted "quadrature"
     configuration; ``evd_thesis`` is the thesis' own (60 unweighted samples, sigma = max);
     ``evd_heat`` its narrow-kernel limit computed from exact Laplace–Beltrami eigenvalues
     (no sampling, no affinity choice, so it is listed with the original-mesh descriptors).
@@ -113,7 +113,7 @@ def embedding_mesh(V, F, *, affinity: str = DEFAULT_AFFINITY, seed: int = 0,
 
 
 def _pairwise_surface_distances(V, F, n_pairs: int, seed: int) -> np.ndarray:
-    from geoshape.retrieval.shd import surface_samples
+    from geoshape.retrieval.descriptors.shd import surface_samples
 
     P = surface_samples(V, F, 2 * n_pairs, seed)
     return np.linalg.norm(P[:n_pairs] - P[n_pairs:], axis=1)
@@ -309,7 +309,7 @@ class DescriptorSpec:
 
 
 def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0, config="quadrature"):
-    from geoshape.spectral.evd import evd_descriptor
+    from geoshape.retrieval.descriptors.evd import evd_descriptor
 
     return evd_descriptor(V, F, config=config, affinity=affinity, seed=seed)
 
@@ -318,19 +318,19 @@ _evd_thesis = functools.partial(_evd, config="thesis")
 
 
 def _evd_heat(V, F, *, seed=0):
-    from geoshape.spectral.evd import evd_descriptor
+    from geoshape.retrieval.descriptors.evd import evd_descriptor
 
     return evd_descriptor(V, F, config="heat")
 
 
 def _shd(V, F, *, seed=0):
-    from geoshape.retrieval.shd import shd_descriptor
+    from geoshape.retrieval.descriptors.shd import shd_descriptor
 
     return shd_descriptor(V, F, seed=seed)
 
 
 def _lfd(V, F, *, seed=0):
-    from geoshape.retrieval.lfd import lfd_descriptor
+    from geoshape.retrieval.descriptors.lfd import lfd_descriptor
 
     return lfd_descriptor(V, F, seed=seed)
 
@@ -503,7 +503,7 @@ def descriptor_distances(name: str, queries, database) -> np.ndarray:
     X = np.asarray(queries, dtype=np.float64)
     Y = np.asarray(database, dtype=np.float64)
     if metric == "lfd":
-        from geoshape.retrieval.lfd import lfd_distance_matrix
+        from geoshape.retrieval.descriptors.lfd import lfd_distance_matrix
 
         return lfd_distance_matrix(X, Y)
     X = X.reshape(len(X), -1)

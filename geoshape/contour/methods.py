@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geoshape._options import check_choice
-from geoshape.correspondence.contour_matching import (
+from geoshape.contour.matching import (
     MATCHERS,
     batch_match_costs,
     best_match,
@@ -55,25 +55,25 @@ __all__ = [
 
 
 def _gsc(P, **kw):
-    from geoshape.correspondence.contour_descriptors import geodesic_shape_context
+    from geoshape.contour.descriptors import geodesic_shape_context
 
     return geodesic_shape_context(P, **kw)
 
 
 def _sc(P, **kw):
-    from geoshape.correspondence.shape_context import shape_context
+    from geoshape.contour.shape_context import shape_context
 
     return shape_context(P, **kw)
 
 
 def _idsc(P, **kw):
-    from geoshape.correspondence.inner_distance import inner_distance_shape_context
+    from geoshape.contour.inner_distance import inner_distance_shape_context
 
     return inner_distance_shape_context(P, **kw)
 
 
 def _cmap(P, **kw):
-    from geoshape.correspondence.contour_descriptors import curvature_map
+    from geoshape.contour.descriptors import curvature_map
 
     return curvature_map(P, **kw)
 
@@ -269,7 +269,7 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
         For each point of ``P``, the index of its match in ``Q``.
     cost : float
         Per-point matching cost in the direction P → Q (``SimCost / N`` for ``gsc``). The
-        retrieval distance of :func:`geoshape.retrieval.contours.shape_distance_matrix` is
+        retrieval distance of :func:`geoshape.contour.retrieval.shape_distance_matrix` is
         the average of both directions for the (asymmetric) ``best``/``proximity`` matchers.
         With ``mirror`` and a better match to the mirror image of ``Q``, ``p2p_12`` indexes
         the points of ``Q`` all the same.

@@ -1,5 +1,5 @@
-"""Output of spectral embeddings: the embedded mesh (thesis Fig. 4.1) and eigenvector plots
-(Fig. 4.3), rendered headless with Matplotlib's Agg backend.
+"""Headless renders of one mesh: Lambert-shaded faces on a Matplotlib 3-D axis, and a PNG
+of a mesh coloured by a per-vertex scalar (thesis Fig. 4.3 eigenvector plots).
 """
 
 from __future__ import annotations
@@ -12,71 +12,7 @@ import numpy as np
 from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
 
-__all__ = ["embedding_vertices", "save_embedding_mesh", "render_mesh_png"]
-
-
-def embedding_vertices(coords: np.ndarray, dims=(0, 1, 2)) -> np.ndarray:
-    """Positions of the embedded mesh: three chosen embedding columns (zeros if fewer).
-
-    Parameters
-    ----------
-    coords : (n, k) float
-        Embedding coordinates.
-    dims : 3 ints
-        Columns used as x, y, z; columns beyond ``k`` are zeros.
-
-    Returns
-    -------
-    V : (n, 3) float64
-    """
-    coords = np.asarray(coords, dtype=np.float64)
-    out = np.zeros((coords.shape[0], 3))
-    for j, d in enumerate(dims):
-        if d < coords.shape[1]:
-            out[:, j] = coords[:, d]
-    return out
-
-
-def save_embedding_mesh(path: str | os.PathLike, coords: np.ndarray, F, *,
-                        sidecar: bool = True, colors=None) -> Path:
-    """Write the embedded mesh: first three embedding coordinates as positions, same faces.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        Mesh file (format from the suffix: .ply, .off, .obj, .stl, optionally .gz).
-    coords : (n, k) float
-        All embedding coordinates.
-    F : (m, 3) int
-        Faces of the original mesh.
-    sidecar : bool
-        Also write all ``k`` columns to ``<path without suffix>.npy`` (atomically).
-    colors : (n, 3) or (n, 4), optional
-        Vertex colours.
-
-    Returns
-    -------
-    Path of the mesh written.
-    """
-    from geoshape.io.atomic import save_npy_atomic
-    from geoshape.io.mesh_io import save_mesh
-
-    path = Path(path)
-    V = embedding_vertices(coords)
-    save_mesh(path, V, np.asarray(F, dtype=np.int64).reshape(-1, 3), colors=colors)
-    if sidecar:
-        save_npy_atomic(sidecar_path(path), np.asarray(coords, dtype=np.float64))
-    return path
-
-
-def sidecar_path(path: str | os.PathLike) -> Path:
-    """``OUT.npy`` for ``OUT.ply`` (and for ``OUT.ply.gz``)."""
-    path = Path(path)
-    name = path.name
-    if name.endswith(".gz"):
-        name = name[:-3]
-    stem = name.rsplit(".", 1)[0] if "." in name else name
-    return path.with_name(stem + ".npy")
+__all__ = ["draw_mesh", "render_mesh_png"]
 
 
 def draw_mesh(ax, V: np.ndarray, F: np.ndarray, facecolors: np.ndarray, *, elev: float = 20.0,

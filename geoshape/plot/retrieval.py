@@ -46,7 +46,7 @@ def plot_similarity_matrix(D, path: str | os.PathLike, *, labels=None, title: st
     im = ax.imshow(S, cmap="gray", interpolation="nearest", vmin=0, vmax=1)
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     if labels is not None and len(labels) == len(D):
-        from geoshape.plot2d import draw_class_boundaries
+        from geoshape.plot.contours import draw_class_boundaries
 
         draw_class_boundaries(ax, labels)
     if title:

@@ -14,7 +14,7 @@ import numpy as np
 
 def transferred_colors(V2, p2p_12) -> tuple[np.ndarray, np.ndarray]:
     """(source colours (n1, 4), target colours (n2, 4)) in [0, 1] for a map 1 → 2."""
-    from geoshape.colormap import position_colors
+    from geoshape.plot.colormap import position_colors
 
     target = position_colors(V2)
     return target[np.asarray(p2p_12)], target
@@ -29,7 +29,7 @@ def plot_correspondence(path: str | os.PathLike, V1, F1, V2, F2, p2p_12, *, titl
     import matplotlib.pyplot as plt
 
     from geoshape.io.atomic import save_figure_atomic
-    from geoshape.spectral.render import draw_mesh
+    from geoshape.plot.meshes import draw_mesh
 
     src_rgba, tgt_rgba = transferred_colors(V2, p2p_12)
     fig = plt.figure(figsize=(2 * size / 100, size / 100), dpi=100)

@@ -21,7 +21,7 @@ to unit mean curvature before weighting, so the weights are relative. Written fr
 papers' descriptions; on SCAPE its maps before refinement are as accurate as pyFM's
 (about 0.04–0.13 √area on the pairs checked).
 
-Conventions as in :mod:`geoshape.correspondence.zoomout`: ``C_21 (k, k)`` maps the
+Conventions as in :mod:`geoshape.correspondence.fmaps.zoomout`: ``C_21 (k, k)`` maps the
 coefficients of a function on mesh 2 to those of its pull-back on mesh 1.
 """
 

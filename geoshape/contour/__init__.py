@@ -1,0 +1,1 @@
+"""2D closed contours once extracted: point descriptors, matchers, the method registry, 2D retrieval."""

@@ -1,0 +1,1 @@
+"""Functional-map refinement on Laplace–Beltrami bases: ZoomOut and descriptor functional maps."""

@@ -1,0 +1,1 @@
+"""Headless pictures (Matplotlib Agg) and colour maps for every result: contours, meshes, maps, retrieval."""
