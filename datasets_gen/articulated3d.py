@@ -423,9 +423,8 @@ def build_template(
     plus O(m log m) for decimation; memory O(resolution^3).
     """
     import pymeshlab
+    from geoshape_datasets_gen._topology import topology_report
     from skimage.measure import marching_cubes
-
-    from datasets_gen._topology import topology_report
 
     target_vertices = int(target_vertices)
     resolution = int(resolution)
@@ -740,7 +739,7 @@ def write_collection(
     header = "source,target,source_landmarks,target_landmarks,target_symmetric_landmarks\n"
     write_text_atomic(out / "pairs.csv", header + "".join(f"{s},{t},,,\n" for s, t in pairs))
     params = {
-        "generator": "datasets_gen.articulated3d.write_collection",
+        "generator": "geoshape_datasets_gen.articulated3d.write_collection",
         "classes": classes, "instances": instances, "poses": poses, "seed": int(seed),
         "variation": float(variation), "amount": float(amount),
         "target_vertices": int(target_vertices), "resolution": int(resolution),

@@ -190,7 +190,7 @@ def decimate_exact(
     Vd = np.ascontiguousarray(mesh.vertex_matrix(), dtype=np.float64)
     Fd = np.ascontiguousarray(mesh.face_matrix(), dtype=np.int64)
     ids = _recover_ids(V, Vd, np.asarray(mesh.vertex_scalar_array(), dtype=np.float64))
-    from datasets_gen._topology import topology_report
+    from geoshape_datasets_gen._topology import topology_report
 
     if not topology_report(Fd).manifold and topology_report(F).manifold:
         warnings.warn(

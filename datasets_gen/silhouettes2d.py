@@ -12,7 +12,7 @@ capsules), ``crab`` (body, two three-segment claws, six short legs).
 
 Usage::
 
-    python -m datasets_gen.silhouettes2d OUT_DIR --per-class 5 --seed 0
+    python -m geoshape_datasets_gen.silhouettes2d OUT_DIR --per-class 5 --seed 0
 """
 
 from __future__ import annotations

@@ -32,7 +32,6 @@ _LAZY = {
     "as_arrays": "geoshape.io.interop",
     "load_silhouette": "geoshape.io.silhouette",
     "extract_contour": "geoshape.io.silhouette",
-    "MeshSet": "plugins.meshset",
 }
 
 __all__ = [

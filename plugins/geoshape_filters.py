@@ -9,12 +9,7 @@ parameter that affects them.
 from __future__ import annotations
 
 import numpy as np
-
-from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, DEFAULT_METHOD
-from geoshape.geometry.geodesics import DEFAULT_GEODESIC_METHOD, GEODESIC_METHODS
-from geoshape.retrieval.descriptors.evd import EVD_CONFIG_NAMES
-from geoshape.spectral.embedding import EMBEDDING_METHODS, SCALINGS
-from plugins.params import (
+from geoshape_plugins.params import (
     BoolParam,
     EnumParam,
     FilterError,
@@ -25,7 +20,12 @@ from plugins.params import (
     PercentageParam,
     StringParam,
 )
-from plugins.registry import HAS_FACES, Arity, Filter, register
+from geoshape_plugins.registry import HAS_FACES, Arity, Filter, register
+
+from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, DEFAULT_METHOD
+from geoshape.geometry.geodesics import DEFAULT_GEODESIC_METHOD, GEODESIC_METHODS
+from geoshape.retrieval.descriptors.evd import EVD_CONFIG_NAMES
+from geoshape.spectral.embedding import EMBEDDING_METHODS, SCALINGS
 
 AFFINITIES = ("geodesic", "euclidean", "combined")
 SIGMA_RULES = ("max", "mean")
@@ -268,7 +268,7 @@ register(Filter(
 
 # ---- decimate_with_ground_truth -------------------------------------------------------
 def _decimate_apply(ms, p, progress):
-    from datasets_gen.decimate import decimate_exact
+    from geoshape_datasets_gen.decimate import decimate_exact
 
     mesh = ms.current_mesh()
     progress(0.0, "decimation")
@@ -303,7 +303,7 @@ register(Filter(
 
 # ---- outlier_spikes -----------------------------------------------------------------
 def _spikes_apply(ms, p, progress):
-    from datasets_gen.spikes import add_spikes
+    from geoshape_datasets_gen.spikes import add_spikes
 
     mesh = ms.current_mesh()
     diag = mesh.bbox_diagonal()

@@ -1,7 +1,7 @@
-"""``geoshape.MeshSet``: meshes plus every registered filter as a method, like PyMeshLab's.
+"""``geoshape_plugins.MeshSet``: meshes plus every registered filter as a method, like PyMeshLab's.
 
 >>> import geoshape
->>> ms = geoshape.MeshSet()                                   # doctest: +SKIP
+>>> ms = geoshape_plugins.MeshSet()                                   # doctest: +SKIP
 >>> ms.load_new_mesh("cat0.off.gz")                           # doctest: +SKIP
 >>> ms.geodesic_distance_from_selection(sources=[0])          # doctest: +SKIP
 >>> ms.apply_filter("meshing_decimation_quadric_edge_collapse", targetfacenum=3000)  # doctest: +SKIP
@@ -9,7 +9,7 @@
 
 Methods are generated from the registry at import (one per filter id, with its parameters
 as keyword-only arguments and its documentation); unknown keyword arguments and wrong
-types raise :class:`~plugins.params.FilterParameterError` listing the valid parameters.
+types raise :class:`~geoshape_plugins.params.FilterParameterError` listing the valid parameters.
 Every applied filter, geoshape's or PyMeshLab's, is recorded with all its parameters, so
 :meth:`MeshSet.save_filter_script` writes a script that replays the session.
 """
@@ -25,10 +25,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from plugins.mlx import ScriptFilter, ScriptParam, read_mlx, write_mlx
-from plugins.params import FilterError, FilterParameterError
-from plugins.registry import Arity, Filter, find_filter, list_filters, resolve_params
+from geoshape_plugins.mlx import ScriptFilter, ScriptParam, read_mlx, write_mlx
+from geoshape_plugins.params import FilterError, FilterParameterError
+from geoshape_plugins.registry import Arity, Filter, find_filter, list_filters, resolve_params
 
 __all__ = ["Mesh", "MeshSet", "AppliedFilter", "no_progress"]
 
@@ -263,7 +262,7 @@ class MeshSet:
         return outputs
 
     def _apply_pymeshlab(self, name: str, params: dict, where: str = "", line: int = 0) -> dict:
-        from plugins.pymeshlab_bridge import apply_pymeshlab_filter
+        from geoshape_plugins.pymeshlab_bridge import apply_pymeshlab_filter
 
         if not self.meshes:
             raise FilterError(f"filter {name!r} needs a mesh: the MeshSet is empty")
@@ -289,14 +288,14 @@ class MeshSet:
         """Run a script: an ``.mlx`` path or a list of :class:`ScriptFilter`.
 
         Every filter name is checked before anything runs; an unknown one raises
-        :class:`~plugins.mlx.FilterScriptError` with its name and line.
+        :class:`~geoshape_plugins.mlx.FilterScriptError` with its name and line.
 
         Returns
         -------
         list of AppliedFilter, one per filter of the script.
         """
-        from plugins.mlx import FilterScriptError
-        from plugins.pymeshlab_bridge import resolve_pymeshlab_name
+        from geoshape_plugins.mlx import FilterScriptError
+        from geoshape_plugins.pymeshlab_bridge import resolve_pymeshlab_name
 
         if isinstance(script, (str, os.PathLike)):
             source = source or str(script)
@@ -320,7 +319,7 @@ class MeshSet:
             if f is not None:
                 self._apply_geoshape(f, self._script_params(f, sf, where), sf.line)
             else:
-                from plugins.pymeshlab_bridge import script_value
+                from geoshape_plugins.pymeshlab_bridge import script_value
 
                 values = {p.name: script_value(p.attrs, f"{where} {p.name}") for p in sf.params}
                 self._apply_pymeshlab(sf.key, values, where, sf.line)

@@ -28,7 +28,7 @@ from pathlib import Path
 from xml.parsers import expat
 from xml.sax.saxutils import quoteattr
 
-from plugins.params import FilterError
+from geoshape_plugins.params import FilterError
 
 __all__ = ["FilterScriptError", "ScriptParam", "ScriptFilter", "read_mlx", "parse_mlx", "write_mlx",
            "mlx_text"]

@@ -1,4 +1,4 @@
-"""Running PyMeshLab filters on the meshes of a geoshape :class:`~plugins.meshset.MeshSet`.
+"""Running PyMeshLab filters on the meshes of a geoshape :class:`~geoshape_plugins.meshset.MeshSet`.
 
 PyMeshLab cannot register Python filters, so the direction is the other way: a geoshape
 MeshSet delegates any filter that is not its own to a fresh ``pymeshlab.MeshSet`` holding
@@ -32,9 +32,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from plugins.mlx import ScriptFilter, ScriptParam, read_mlx
-from plugins.params import FilterError, FilterParameterError
+from geoshape_plugins.mlx import ScriptFilter, ScriptParam, read_mlx
+from geoshape_plugins.params import FilterError, FilterParameterError
 
 __all__ = ["pymeshlab_filter_names", "resolve_pymeshlab_name", "script_value", "apply_pymeshlab_filter"]
 
@@ -123,7 +122,7 @@ def _to_pymeshlab(mesh):
 
 def _copy_back(ms, pms, touched: list[int]) -> None:
     """Copy meshes of the PyMeshLab set ``pms`` into the geoshape set ``ms``."""
-    from plugins.meshset import Mesh
+    from geoshape_plugins.meshset import Mesh
 
     for pid in touched:
         pm = pms.mesh(pid)
@@ -160,7 +159,7 @@ def apply_pymeshlab_filter(ms, name: str, params: dict[str, Any], *,
 
     Parameters
     ----------
-    ms : plugins.meshset.MeshSet
+    ms : geoshape_plugins.meshset.MeshSet
     name : str
         PyMeshLab Python name or MeshLab display name.
     params : dict

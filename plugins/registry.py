@@ -4,7 +4,7 @@ A :class:`Filter` declares a stable snake_case ``id`` (what scripts and Python u
 display ``name``, a description with its citation, category flags, its arity, typed
 parameters, preconditions and ``apply(meshset, params, progress) -> dict``. ``apply``
 does no file or UI work, reports progress through ``progress(fraction, message)`` and
-raises :class:`~plugins.params.FilterError` (or another
+raises :class:`~geoshape_plugins.params.FilterError` (or another
 :class:`~geoshape.errors.GeoshapeError`) only.
 """
 
@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from plugins.params import FilterError, FilterParameterError, Param
+from geoshape_plugins.params import FilterError, FilterParameterError, Param
 
 __all__ = [
     "Arity",
@@ -61,7 +61,7 @@ class Filter:
     Attributes
     ----------
     id : str
-        Stable snake_case identifier: the method name on :class:`~plugins.meshset.MeshSet`
+        Stable snake_case identifier: the method name on :class:`~geoshape_plugins.meshset.MeshSet`
         and the ``id`` attribute in ``.mlx`` scripts.
     name : str
         Display name (MeshLab style); may change between versions, the id does not.
@@ -113,7 +113,7 @@ def register(f: Filter) -> Filter:
 
 
 def _ensure_loaded() -> None:
-    import plugins.geoshape_filters  # noqa: F401  (registers the filters on import)
+    import geoshape_plugins.geoshape_filters  # noqa: F401  (registers the filters on import)
 
 
 def list_filters() -> list[Filter]:

@@ -11,7 +11,7 @@ from geoshape.errors import InvalidOptionError
 
 
 def test_bench_evd_writes_the_settings_table(tmp_path, monkeypatch, capsys):
-    from datasets_gen.articulated3d import write_collection
+    from geoshape_datasets_gen.articulated3d import write_collection
 
     write_collection(tmp_path / "set", classes=["biped", "snake"], poses=2, seed=1,
                      target_vertices=600, resolution=48)

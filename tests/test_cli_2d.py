@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
 
-from datasets_gen.silhouettes2d import generate_silhouettes
 from geoshape.__main__ import main
 
 

@@ -13,14 +13,15 @@ from geoshape.contour.matching import (
     proximity_anchors,
     proximity_match,
 )
-from geoshape.contour.methods import METHODS, match_contours, method_spec
+from geoshape.contour.methods import CONTOUR_METHODS, match_contours, method_spec
 from geoshape.contour.retrieval import shape_distance_matrix
 from geoshape.errors import GeoshapeError, InvalidContourError, InvalidOptionError
 
 
 @pytest.fixture(scope="module")
 def silhouette_contour():
-    from datasets_gen.silhouettes2d import articulated_silhouette
+    from geoshape_datasets_gen.silhouettes2d import articulated_silhouette
+
     from geoshape.io.silhouette import extract_contour
 
     return extract_contour(articulated_silhouette("quadruped", seed=3), n_points=80)
@@ -32,7 +33,7 @@ def similar_copy(P, shift):
     return np.roll(2.7 * P @ R.T + [40.0, -11.0], -shift, axis=0)
 
 
-@pytest.mark.parametrize("method", sorted(METHODS))
+@pytest.mark.parametrize("method", sorted(CONTOUR_METHODS))
 def test_similarity_transformed_copy_matches_point_for_point(method, silhouette_contour):
     P = silhouette_contour
     shift = 7

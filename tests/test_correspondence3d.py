@@ -19,7 +19,7 @@ from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
 
 @functools.cache
 def figure(cls="quadruped"):
-    from datasets_gen.articulated3d import generate_figure
+    from geoshape_datasets_gen.articulated3d import generate_figure
 
     fig = generate_figure(cls, poses=2, seed=3, target_vertices=900, resolution=64)
     return fig.poses[0], fig.poses[1], fig.F

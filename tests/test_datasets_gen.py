@@ -11,18 +11,18 @@ import csv
 import numpy as np
 import pytest
 from conftest import grid_mesh, icosphere, shared_dataset
-
-from datasets_gen._topology import topology_report
-from datasets_gen.articulated3d import (
+from geoshape_datasets_gen._topology import topology_report
+from geoshape_datasets_gen.articulated3d import (
     CLASSES,
     generate_figure,
     make_skeleton,
     pose_vertices,
     write_collection,
 )
-from datasets_gen.decimate import decimate_exact, decimation_ladder
-from datasets_gen.spikes import add_spikes
-from datasets_gen.stretch import MAX_PART_FACTOR, graph_distances, stretch_axes, stretch_part
+from geoshape_datasets_gen.decimate import decimate_exact, decimation_ladder
+from geoshape_datasets_gen.spikes import add_spikes
+from geoshape_datasets_gen.stretch import MAX_PART_FACTOR, graph_distances, stretch_axes, stretch_part
+
 from geoshape.errors import GeoshapeError, InvalidOptionError
 from geoshape.io.report import mesh_report
 

@@ -22,7 +22,7 @@ from geoshape.spectral.laplacian import laplacian_basis
 
 @functools.cache
 def biped():
-    from datasets_gen.articulated3d import generate_figure
+    from geoshape_datasets_gen.articulated3d import generate_figure
 
     fig = generate_figure("biped", poses=1, seed=3, target_vertices=900, resolution=64)
     V, F = fig.poses[0], fig.F

@@ -9,11 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import icosphere, shared_dataset
-
-from plugins.meshset import MeshSet
-from plugins.mlx import FilterScriptError, mlx_text, parse_mlx, read_mlx
-from plugins.params import AbsoluteValue, FilterError, FilterParameterError
-from plugins.registry import list_filters
+from geoshape_plugins.meshset import MeshSet
+from geoshape_plugins.mlx import FilterScriptError, mlx_text, parse_mlx, read_mlx
+from geoshape_plugins.params import AbsoluteValue, FilterError, FilterParameterError
+from geoshape_plugins.registry import list_filters
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -81,10 +80,13 @@ def test_generated_methods_have_signature_and_doc():
     assert "Jain and Zhang" in MeshSet.outlier_spikes.__doc__
 
 
-def test_meshset_is_exposed_lazily():
+def test_meshset_is_exposed_lazily_by_the_plugin_package_not_the_core():
+    import geoshape_plugins
+
     import geoshape
 
-    assert geoshape.MeshSet is MeshSet
+    assert geoshape_plugins.MeshSet is MeshSet
+    assert not hasattr(geoshape, "MeshSet")
 
 
 # ---- parameter validation ----------------------------------------------------------
@@ -197,7 +199,7 @@ def test_mlx_round_trip(tmp_path):
     path = ms.save_filter_script(tmp_path / "s.mlx")
     read = read_mlx(path)
     assert [(f.id, f.name) for f in read] == [(a.script.id, a.script.name) for a in ms.history]
-    from plugins.registry import get_filter
+    from geoshape_plugins.registry import get_filter
 
     for sf, applied in zip(read, ms.history, strict=True):
         f = get_filter(sf.id)
@@ -321,7 +323,7 @@ def test_filters_cli_lists_everything(capsys):
 
 
 def test_docs_page_is_generated_from_the_registry():
-    from plugins.docs import filters_markdown
+    from geoshape_plugins.docs import filters_markdown
 
     page = (REPO / "docs" / "filters.md").read_text()
     assert page == filters_markdown(), "regenerate: geoshape filters --markdown > docs/filters.md"
@@ -401,7 +403,7 @@ def test_acceptance_tosca_script_from_cli_and_python(tmp_path, capsys):
 
 
 def test_param_types_from_text_and_back():
-    from plugins.params import EnumParam, FilePathParam, IntListParam, PercentageParam
+    from geoshape_plugins.params import EnumParam, FilePathParam, IntListParam, PercentageParam
 
     path = FilePathParam("map", "")
     assert path.coerce(Path("a/b.npy")) == "a/b.npy"

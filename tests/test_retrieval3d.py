@@ -12,7 +12,7 @@ from conftest import icosphere
 
 from geoshape.errors import InvalidOptionError
 from geoshape.retrieval.descriptors import (
-    DESCRIPTORS,
+    MESH_DESCRIPTORS,
     compute_descriptor,
     descriptor_distance_matrix,
     descriptor_distances,
@@ -30,7 +30,7 @@ def _rotation(seed: int) -> np.ndarray:
 @pytest.fixture(scope="module")
 def figures():
     """Two poses each of a biped and a quadruped (~800 vertices), generated once."""
-    from datasets_gen.articulated3d import generate_figure
+    from geoshape_datasets_gen.articulated3d import generate_figure
 
     out = {}
     for cls in ("biped", "quadruped"):
@@ -50,9 +50,9 @@ def _dist(name, a, b):
 INVARIANCE_RATIO = {"lfd": 0.6, "lfd_emb": 0.6}
 
 
-@pytest.mark.parametrize("name", [n for n in DESCRIPTORS if n != "ccd"])
+@pytest.mark.parametrize("name", [n for n in MESH_DESCRIPTORS if n != "ccd"])
 def test_rigid_and_scale_invariance(name, figures):
-    spec = DESCRIPTORS[name]
+    spec = MESH_DESCRIPTORS[name]
     V, F = figures["biped"][0]
     Vo, Fo = figures["quadruped"][0]
     moved = 2.5 * V @ _rotation(7).T + np.array([3.0, -1.0, 0.5])
@@ -95,7 +95,7 @@ def test_descriptor_shapes_and_metrics():
     assert compute_descriptor(V, F, "lfd").shape == (4, 10, 46)
     assert compute_descriptor(V, F, "shapedna").shape == (20,)
     assert compute_descriptor(V, F, "evd").shape == (20,)
-    for name, spec in DESCRIPTORS.items():
+    for name, spec in MESH_DESCRIPTORS.items():
         assert spec.metric in ("chi2", "l1", "l2", "lfd", "ccd"), name
 
 

@@ -6,8 +6,8 @@ import hashlib
 
 import numpy as np
 import pytest
+from geoshape_datasets_gen.silhouettes2d import CLASSES, articulated_silhouette, generate_silhouettes
 
-from datasets_gen.silhouettes2d import CLASSES, articulated_silhouette, generate_silhouettes
 from geoshape.errors import InvalidOptionError
 from geoshape.io.datasets import read_labels
 from geoshape.io.silhouette import contour_from_image

@@ -27,14 +27,14 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
 
     from geoshape._options import check_choice
     from geoshape.bench.results import update_results_section
-    from geoshape.contour.methods import METHODS
+    from geoshape.contour.methods import CONTOUR_METHODS
     from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.io.atomic import save_npy_atomic
     from geoshape.io.datasets import dataset_dir
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
-        check_choice("method", m, METHODS)
+        check_choice("method", m, CONTOUR_METHODS)
     folder = dataset_dir(dataset)
     rows = []
     for m in methods:
@@ -43,7 +43,7 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
                                   n_jobs=args.n_jobs)
         met = res["metrics"]
         counts = met["top_k_counts"]
-        rows.append([m, METHODS[m]["summary"], " ".join(str(c) for c in counts),
+        rows.append([m, CONTOUR_METHODS[m]["summary"], " ".join(str(c) for c in counts),
                      f"{met['top_k_total']}/{met['top_k_max']}", f"{met['bulls_eye']:.2f}",
                      f"{met['map']:.4f}", f"{res['seconds_descriptors']:.1f}",
                      f"{res['seconds']:.1f}"])

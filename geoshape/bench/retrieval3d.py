@@ -1,7 +1,7 @@
 """``geoshape bench retrieval3d``: 3D retrieval with every descriptor, original vs embedding.
 
 On ``tosca_r5k`` (76 meshes, 8 classes) and on a generated articulated collection
-(``datasets_gen.articulated3d.write_collection``): every descriptor of the registry (and
+(``geoshape_datasets_gen.articulated3d.write_collection``): every descriptor of the registry (and
 EVD → CCD), the spectral and embedding ones under every affinity; NN, FT, ST, E, DCG, mAP,
 descriptor time per mesh. Also: EVD time per mesh at 5k and 25k vertices, and the query
 time of the persistent index over 10,000 stored (synthetic) EVD rows. Writes section
@@ -46,12 +46,12 @@ def _methods(args):
 
 
 def _runs(methods, affinities):
-    from geoshape.retrieval.descriptors import DESCRIPTORS, RERANKERS
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RERANKERS
 
     out = []
     for m in methods:
         names = RERANKERS.get(m, (m,))
-        if any(DESCRIPTORS[n].uses_affinity for n in names):
+        if any(MESH_DESCRIPTORS[n].uses_affinity for n in names):
             out += [(m, a) for a in affinities]
         else:
             out.append((m, None))
@@ -59,7 +59,7 @@ def _runs(methods, affinities):
 
 
 def _generated(tmp, args):
-    from datasets_gen.articulated3d import CLASSES, write_collection
+    from geoshape_datasets_gen.articulated3d import CLASSES, write_collection
 
     folder = tmp / "articulated3d"
     write_collection(folder, classes=CLASSES, instances=args.gen_instances, poses=args.gen_poses,
@@ -134,7 +134,7 @@ def run(args) -> int:
     from geoshape.bench.results import default_results_path, update_results_section
     from geoshape.io.datasets import dataset_dir
     from geoshape.metrics.retrieval import plot_precision_recall
-    from geoshape.retrieval.descriptors import DESCRIPTORS, RERANKERS
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RERANKERS
     from geoshape.retrieval.meshes import retrieval3d_on_folder
 
     methods = _methods(args)
@@ -167,7 +167,7 @@ def run(args) -> int:
                                             progress=False)
                 met = res["metrics"]
                 names = RERANKERS.get(m, (m,))
-                domain = "/".join(sorted({DESCRIPTORS[n].domain for n in names}))
+                domain = "/".join(sorted({MESH_DESCRIPTORS[n].domain for n in names}))
                 per = " + ".join(f"{res['seconds_per_mesh'][n]:.3f}" for n in names)
                 state["rows"].append([set_name, m, domain, aff or "-", met["nearest_neighbor"],
                                       met["first_tier"], met["second_tier"], met["e_measure"],

@@ -1,6 +1,6 @@
 """``geoshape demo --out DIR``: the main job in one command, on generated silhouettes.
 
-Generates a small set of articulated silhouettes (``datasets_gen.silhouettes2d``), matches
+Generates a small set of articulated silhouettes (``geoshape_datasets_gen.silhouettes2d``), matches
 two poses of one figure (picture), runs all-pairs retrieval on the set (matrix picture,
 metrics as Markdown and JSON) and prints a short summary. Runs in a few seconds.
 """
@@ -30,10 +30,11 @@ def run(args) -> int:
     import time
     from pathlib import Path
 
-    from datasets_gen.silhouettes2d import generate_silhouettes
+    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
     from geoshape.bench.results import markdown_table
     from geoshape.cli._common import to_jsonable
-    from geoshape.contour.methods import METHODS, match_contours, method_spec
+    from geoshape.contour.methods import CONTOUR_METHODS, match_contours, method_spec
     from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.errors import InvalidOptionError
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
@@ -72,7 +73,7 @@ def run(args) -> int:
           f"{met['nearest_neighbor']:.3f}", f"{met['map']:.3f}", f"{res['seconds']:.2f}"]],
     )
     md = (f"# geoshape demo\n\nRetrieval on {met['n']} generated articulated silhouettes "
-          f"(seed {args.seed}); method `{args.method}`: {METHODS[args.method]['summary']}.\n\n"
+          f"(seed {args.seed}); method `{args.method}`: {CONTOUR_METHODS[args.method]['summary']}.\n\n"
           f"{table}\n\nMatch picture: `match2d.png` ({a.name} ↔ {b.name}, cost {cost:.4g}).\n")
     corr3d = {} if args.no_3d else _demo_3d(out, args.seed)
     if corr3d:
@@ -103,8 +104,8 @@ def _demo_3d(out, seed: int) -> dict:
     import time
 
     import numpy as np
+    from geoshape_datasets_gen.articulated3d import generate_figure
 
-    from datasets_gen.articulated3d import generate_figure
     from geoshape.correspondence.map_io import write_map
     from geoshape.correspondence.mesh_matching import correspond
     from geoshape.plot.correspondence import plot_correspondence

@@ -13,7 +13,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "filters",
         help="list the MeshLab-style filters (ids, parameters, defaults)",
-        description="List geoshape's filters, usable from Python (geoshape.MeshSet), in .mlx "
+        description="List geoshape's filters, usable from Python (geoshape_plugins.MeshSet), in .mlx "
         "scripts and with 'geoshape run'.",
     )
     group = p.add_mutually_exclusive_group()
@@ -24,8 +24,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from plugins.docs import filter_summary, filters_markdown
-    from plugins.registry import list_filters
+    from geoshape_plugins.docs import filter_summary, filters_markdown
+    from geoshape_plugins.registry import list_filters
 
     if args.markdown:
         print(filters_markdown(), end="")

@@ -127,7 +127,8 @@ def decimation_names(stem: str, ratios) -> list[str]:
 def run_decimate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from datasets_gen.decimate import check_ratio, decimate_exact
+    from geoshape_datasets_gen.decimate import check_ratio, decimate_exact
+
     from geoshape.io.atomic import write_text_atomic
     from geoshape.io.datasets import mesh_stem
     from geoshape.io.mesh_io import load_mesh, save_mesh
@@ -150,7 +151,8 @@ def run_decimate(args: argparse.Namespace) -> int:
 
 
 def run_spikes(args: argparse.Namespace) -> int:
-    from datasets_gen.spikes import add_spikes
+    from geoshape_datasets_gen.spikes import add_spikes
+
     from geoshape.io.mesh_io import load_mesh, save_mesh
 
     V, F = load_mesh(args.mesh)
@@ -163,7 +165,8 @@ def run_spikes(args: argparse.Namespace) -> int:
 
 
 def run_stretch(args: argparse.Namespace) -> int:
-    from datasets_gen.stretch import stretch_axes, stretch_part
+    from geoshape_datasets_gen.stretch import stretch_axes, stretch_part
+
     from geoshape.errors import InvalidOptionError
     from geoshape.io.mesh_io import load_mesh, save_mesh
 
@@ -191,7 +194,7 @@ def run_stretch(args: argparse.Namespace) -> int:
 
 
 def run_articulated(args: argparse.Namespace) -> int:
-    from datasets_gen.articulated3d import CLASSES, write_collection
+    from geoshape_datasets_gen.articulated3d import CLASSES, write_collection
 
     classes = CLASSES if args.classes is None else [c.strip() for c in args.classes.split(",") if c.strip()]
     res = write_collection(

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 
 def register(subparsers) -> None:
-    from geoshape.retrieval.descriptors import DESCRIPTORS, RETRIEVAL_METHODS
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RETRIEVAL_METHODS
 
-    listing = "; ".join(f"{n}: {s.summary}" for n, s in DESCRIPTORS.items())
+    listing = "; ".join(f"{n}: {s.summary}" for n, s in MESH_DESCRIPTORS.items())
     p = subparsers.add_parser(
         "retrieval3d",
         help="all-pairs dissimilarity matrix and retrieval scores of a folder of meshes",

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     import time
     import warnings
 
-    from plugins.meshset import MeshSet
+    from geoshape_plugins.meshset import MeshSet
 
     log = logging.getLogger("geoshape.run")
 

@@ -1,7 +1,7 @@
 """The registry of 2D matching methods and :func:`match_contours`.
 
 A *method* names a point descriptor (or a weighted combination of several), the point cost,
-and a matcher. The registry ``METHODS`` is what the command line and the docs list:
+and a matcher. The registry ``CONTOUR_METHODS`` is what the command line and the docs list:
 
 ============== ======================================== ============ ===========================
 name           descriptor                               point cost   matcher
@@ -42,8 +42,8 @@ from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_contour
 
 __all__ = [
-    "DESCRIPTORS",
-    "METHODS",
+    "POINT_DESCRIPTORS",
+    "CONTOUR_METHODS",
     "DEFAULT_METHOD",
     "ContourSignature",
     "method_spec",
@@ -79,7 +79,7 @@ def _cmap(P, **kw):
 
 
 #: Point descriptors by name: function ``(P, **options) -> (N, K)``.
-DESCRIPTORS = {
+POINT_DESCRIPTORS = {
     "gsc": _gsc,
     "shape_context": _sc,
     "idsc": _idsc,
@@ -91,7 +91,7 @@ _TRANSFORMS = ("raw", "hist")
 
 #: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
 #: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image.
-METHODS: dict[str, dict] = {
+CONTOUR_METHODS: dict[str, dict] = {
     "default": dict(
         parts=(("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist", {}),
                ("gsc", 0.005, "raw", {})),
@@ -132,8 +132,8 @@ def method_spec(method: str, **overrides) -> dict:
 
     Unknown override keys raise :class:`InvalidOptionError` listing the allowed ones.
     """
-    check_choice("method", method, METHODS)
-    spec = dict(METHODS[method])
+    check_choice("method", method, CONTOUR_METHODS)
+    spec = dict(CONTOUR_METHODS[method])
     spec["matcher_options"] = dict(spec["matcher_options"])
     for key, value in overrides.items():
         if value is None:
@@ -150,7 +150,7 @@ def method_spec(method: str, **overrides) -> dict:
     check_choice("matcher", spec["matcher"], MATCHERS)
     check_choice("metric", spec["metric"], ("sqeuclidean", "chi2"))
     for name, _, transform, _ in spec["parts"]:
-        check_choice("descriptor", name, DESCRIPTORS)
+        check_choice("descriptor", name, POINT_DESCRIPTORS)
         check_choice("transform", transform, _TRANSFORMS)
     if spec["metric"] == "chi2" and (len(spec["parts"]) != 1 or spec["parts"][0][2] != "hist"):
         raise InvalidOptionError("metric 'chi2' needs exactly one histogram descriptor")
@@ -173,7 +173,7 @@ class ContourSignature:
 def _embed(P: np.ndarray, spec: dict) -> np.ndarray:
     blocks = []
     for name, weight, transform, options in spec["parts"]:
-        H = np.asarray(DESCRIPTORS[name](P, **options), dtype=np.float64)
+        H = np.asarray(POINT_DESCRIPTORS[name](P, **options), dtype=np.float64)
         if spec["metric"] == "chi2":
             blocks.append(H)
             continue
@@ -257,7 +257,7 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
     Q : (M, 2) array_like
         Contour 2, same conventions.
     method : str
-        A key of ``METHODS`` (``default``, ``gsc``, ``shape_context``, ``idsc``,
+        A key of ``CONTOUR_METHODS`` (``default``, ``gsc``, ``shape_context``, ``idsc``,
         ``curvature_map``).
     **options
         Overrides of the method's entry: ``matcher`` (``best``, ``proximity``,

@@ -76,7 +76,7 @@ def shape_distance_matrix(contours, method: str = DEFAULT_METHOD, *, backend: st
         Closed counter-clockwise contours, all with the same number of points (the
         matching is batched over stacked descriptors).
     method : str
-        A key of :data:`geoshape.contour.methods.METHODS`.
+        A key of :data:`geoshape.contour.methods.CONTOUR_METHODS`.
     backend : {"processes", "serial", "dask"} or None
         How the work is spread (:mod:`geoshape.parallel`); ``None`` = processes on all cores.
     n_jobs : int, optional

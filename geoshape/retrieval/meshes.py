@@ -88,7 +88,7 @@ def compute_descriptors(paths, name: str, *, affinity: str | None = None, seed: 
     ----------
     paths : sequence of path
     name : str
-        Registered descriptor (:data:`geoshape.retrieval.descriptors.DESCRIPTORS`).
+        Registered descriptor (:data:`geoshape.retrieval.descriptors.MESH_DESCRIPTORS`).
     affinity, seed
         See :func:`geoshape.retrieval.descriptors.compute_descriptor`.
     backend, n_jobs, scheduler, progress

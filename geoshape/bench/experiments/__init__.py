@@ -14,7 +14,7 @@ Every experiment is one module exposing
 - ``SUMMARY``: the columns ``geoshape experiment`` prints.
 
 Experiments run on ``tosca_r5k`` meshes when the data folder is present and on generated
-meshes (:mod:`datasets_gen`) always; without the data they say so in the table notes and
+meshes (:mod:`geoshape_datasets_gen`) always; without the data they say so in the table notes and
 use the generated meshes only. Modules keep their top-level imports light.
 """
 

@@ -79,7 +79,7 @@ def reduce_mesh(V, F, n_vertices: int | None):
     ``ids`` maps the kept vertices to input ids. ``None`` or ``n_vertices >= n`` keeps the
     mesh. Time: one quadric-collapse pass, about 0.5 s for 5k vertices.
     """
-    from datasets_gen.decimate import decimate_exact
+    from geoshape_datasets_gen.decimate import decimate_exact
 
     n = len(V)
     if n_vertices is None or n_vertices >= n:
@@ -132,7 +132,7 @@ def tosca_landmarks(folder: Path, name: str) -> np.ndarray:
 
 def generated_poses(cls: str, n_vertices: int, poses: int = 1, seed: int = 0):
     """``(poses (P, n, 3), F)`` of a generated figure (identity ground truth across poses)."""
-    from datasets_gen.articulated3d import generate_figure
+    from geoshape_datasets_gen.articulated3d import generate_figure
 
     resolution = 64 if n_vertices <= 2500 else 96
     fig = generate_figure(cls, poses=poses, seed=seed, target_vertices=n_vertices, resolution=resolution)

@@ -2,7 +2,7 @@
 
 A mesh (a tosca_r5k mesh reduced to ``base_vertices``, and generated figures; the thesis
 used 200-vertex meshes) is matched with the thesis pipeline (``correspond(method="jz")``)
-to a copy of itself with ``count`` spikes (:func:`datasets_gen.spikes.add_spikes`: a vertex
+to a copy of itself with ``count`` spikes (:func:`geoshape_datasets_gen.spikes.add_spikes`: a vertex
 pulled ``height`` × bounding-box diagonal off a random face; the original vertices keep
 their ids, so the truth is the identity on them). The affinity width of both meshes is
 ``σ = ρ × mean geodesic distance`` of that mesh. Reported per (mesh, spikes, ρ): the mean
@@ -105,8 +105,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
     = 48 runs.
     """
     import numpy as np
+    from geoshape_datasets_gen.spikes import add_spikes
 
-    from datasets_gen.spikes import add_spikes
     from geoshape.bench.experiments import _common as c
     from geoshape.correspondence.mesh_matching import PreparedMesh, correspond
     from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors

@@ -2,7 +2,7 @@
 
 A mesh (a tosca_r5k mesh reduced to ``base_vertices``, and generated figures) is matched
 with the thesis pipeline (``correspond(method="jz")``) to decimated copies of itself
-(:func:`datasets_gen.decimate.decimate_exact`: kept vertices do not move, so the truth is
+(:func:`geoshape_datasets_gen.decimate.decimate_exact`: kept vertices do not move, so the truth is
 exact: original vertex ``orig_ids[j]`` belongs to decimated vertex ``j``). The same run is
 made with ``scaling="sqrt"`` and ``scaling="none"``; nothing else differs. Reported, against
 the difference in vertex count: the mean geodesic error on the decimated mesh (divided by
@@ -55,7 +55,7 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
     tosca : sequence of str
         tosca_r5k mesh names (skipped, with a note, when the data is absent).
     generated : sequence of str
-        Classes of :mod:`datasets_gen.articulated3d`.
+        Classes of :mod:`geoshape_datasets_gen.articulated3d`.
     base_vertices : int
         Every mesh is first reduced to about this many vertices (exact embeddings below
         2000 vertices).
@@ -87,8 +87,8 @@ def run_experiment(out_dir, *, tosca=TOSCA, generated=GENERATED, base_vertices: 
     each). Default settings: 3 meshes x 3 ratios x 2 scalings = 18 runs.
     """
     import numpy as np
+    from geoshape_datasets_gen.decimate import decimate_exact
 
-    from datasets_gen.decimate import decimate_exact
     from geoshape._options import check_choice
     from geoshape.bench.experiments import _common as c
     from geoshape.correspondence.mesh_matching import PreparedMesh, correspond

@@ -1,7 +1,7 @@
 """Moderate stretching (thesis §4.7 claim: robustness to moderate non-isometry).
 
 Each mesh (full-resolution tosca_r5k meshes, one per class by default, and generated
-figures) is matched to stretched copies of itself (:mod:`datasets_gen.stretch`): scaled by
+figures) is matched to stretched copies of itself (:mod:`geoshape_datasets_gen.stretch`): scaled by
 ``factor`` along one coordinate axis at a time, and with one part — a geodesic ball of
 radius ``part_radius`` × bounding-box diagonal around a seeded vertex — stretched by
 ``factor`` along its principal direction. Connectivity is unchanged, so the truth is the
@@ -57,7 +57,7 @@ def settings(args: argparse.Namespace) -> dict:
 
 def stretched_variants(V, F, factor: float, part_radius: float, seed: int = 0) -> list[tuple[str, object]]:
     """``[(label, V_stretched), ...]``: one per axis, then one stretched part (same ``F``)."""
-    from datasets_gen.stretch import stretch_axes, stretch_part
+    from geoshape_datasets_gen.stretch import stretch_axes, stretch_part
 
     out = []
     for axis, name in enumerate("xyz"):

@@ -3,8 +3,8 @@
 For a source mesh (a tosca_r5k mesh reduced to ``base_vertices``, and generated figures)
 and three partners — another pose (TOSCA: the given partner, matched through the ``.vts``
 landmarks; generated: a second random pose, identity truth), a copy stretched along x
-(:func:`datasets_gen.stretch.stretch_axes`), and a copy with one part stretched
-(:func:`datasets_gen.stretch.stretch_part`) — the first ``k`` embedding eigenvectors (the
+(:func:`geoshape_datasets_gen.stretch.stretch_axes`), and a copy with one part stretched
+(:func:`geoshape_datasets_gen.stretch.stretch_part`) — the first ``k`` embedding eigenvectors (the
 thesis' eigenvectors 2…k+1; the first is dropped) of both meshes are compared in two ways:
 
 ``cost``
@@ -108,8 +108,8 @@ def _count(perm, signs):
 def _partners(mesh, args_k, stretch, seed, folder, partner_name, base_vertices):
     """(label, V2, F2, pairs_a, pairs_b) for the pose, stretched and part-stretched partners."""
     import numpy as np
+    from geoshape_datasets_gen.stretch import stretch_axes, stretch_part
 
-    from datasets_gen.stretch import stretch_axes, stretch_part
     from geoshape.bench.experiments import _common as c
 
     n = len(mesh.V)

@@ -1,7 +1,7 @@
 """Global 3D shape descriptors, their registry and their distances (thesis §4.4, §4.6.2).
 
 Every descriptor is a function on one mesh ``(V, F) -> array`` registered in
-:data:`DESCRIPTORS` with the metric it is compared with. The registry is what the CLI,
+:data:`MESH_DESCRIPTORS` with the metric it is compared with. The registry is what the CLI,
 the index and the benchmark list.
 
 On the original mesh
@@ -46,7 +46,7 @@ from geoshape.io.validate import check_mesh
 
 __all__ = [
     "DescriptorSpec",
-    "DESCRIPTORS",
+    "MESH_DESCRIPTORS",
     "METRICS",
     "RETRIEVAL_METHODS",
     "DEFAULT_AFFINITY",
@@ -338,7 +338,7 @@ def _lfd(V, F, *, seed=0):
 _RIGID = ("translation", "rotation", "scale")
 _INTRINSIC = _RIGID + ("bending",)
 
-DESCRIPTORS: dict[str, DescriptorSpec] = {
+MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
     s.name: s
     for s in [
         DescriptorSpec("evd", "√ of the top 20 eigenvalues of the area-weighted affinity of 500 "
@@ -373,13 +373,13 @@ DESCRIPTORS: dict[str, DescriptorSpec] = {
 METRICS = ("chi2", "l1", "l2", "lfd", "ccd")
 #: Everything ``geoshape retrieval3d --descriptor`` accepts: descriptors + re-ranking schemes.
 RERANKERS = {"evd_ccd": ("evd", "ccd")}
-RETRIEVAL_METHODS = tuple(DESCRIPTORS) + tuple(RERANKERS)
+RETRIEVAL_METHODS = tuple(MESH_DESCRIPTORS) + tuple(RERANKERS)
 
 
 def get_descriptor(name: str) -> DescriptorSpec:
     """The registered descriptor ``name``; raises listing the registered names."""
-    check_choice("descriptor", name, DESCRIPTORS)
-    return DESCRIPTORS[name]
+    check_choice("descriptor", name, MESH_DESCRIPTORS)
+    return MESH_DESCRIPTORS[name]
 
 
 def descriptor_params(name: str, affinity: str | None = None, seed: int = 0) -> dict:
@@ -395,7 +395,7 @@ def descriptor_params(name: str, affinity: str | None = None, seed: int = 0) -> 
     if spec.uses_affinity:
         params["affinity"] = check_choice("affinity", affinity or DEFAULT_AFFINITY, AFFINITY_KINDS)
     elif affinity is not None:
-        alt = f"; use '{name}_emb' for the spectral embedding" if f"{name}_emb" in DESCRIPTORS else ""
+        alt = f"; use '{name}_emb' for the spectral embedding" if f"{name}_emb" in MESH_DESCRIPTORS else ""
         raise InvalidOptionError(
             f"descriptor {name!r} works on the original mesh and takes no affinity "
             f"(got {affinity!r}){alt}"
@@ -417,7 +417,7 @@ def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: in
     V : (n, 3) float
     F : (m, 3) int
     name : str
-        One of :data:`DESCRIPTORS`.
+        One of :data:`MESH_DESCRIPTORS`.
     affinity : {"geodesic", "euclidean", "combined"} or None
         For spectral and embedding descriptors (default geodesic); must be None for the
         others.
@@ -446,7 +446,7 @@ def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: in
 
 
 def _compute(V, F, name: str, params: dict, seed: int) -> np.ndarray:
-    spec = DESCRIPTORS[name]
+    spec = MESH_DESCRIPTORS[name]
     if spec.domain == "embedding":
         X = embedding_mesh(V, F, affinity=params["affinity"], seed=seed)
         return np.asarray(spec.compute(X, F, seed=seed), dtype=np.float64)
