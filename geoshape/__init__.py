@@ -17,6 +17,7 @@ from geoshape.errors import (
     InvalidMeshError,
     InvalidOptionError,
     MissingDependencyError,
+    OutputError,
     ResourceLimitError,
 )
 
@@ -44,6 +45,7 @@ __all__ = [
     "MissingDependencyError",
     "InvalidOptionError",
     "ResourceLimitError",
+    "OutputError",
     *_LAZY,
 ]
 

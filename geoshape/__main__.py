@@ -63,10 +63,17 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "handler", None):
         parser.print_help()
         return 2
+    import contextlib
+
     from geoshape.errors import GeoshapeError
+    from geoshape.io.atomic import staged_outputs
+    from geoshape.io.outputs import check_declared_outputs
 
     try:
-        status = args.handler(args)
+        check_declared_outputs(args)  # before any work: a bad output path costs nothing
+        stage = staged_outputs() if getattr(args, "outputs_all_or_nothing", False) else contextlib.nullcontext()
+        with stage:
+            status = args.handler(args)
     except GeoshapeError as exc:
         print(f"geoshape {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -16,6 +16,7 @@ __all__ = [
     "MissingDependencyError",
     "InvalidOptionError",
     "ResourceLimitError",
+    "OutputError",
 ]
 
 
@@ -49,3 +50,8 @@ class InvalidOptionError(GeoshapeError, ValueError):
 
 class ResourceLimitError(GeoshapeError, MemoryError):
     """The request would need more memory than this machine can give (e.g. all-pairs n x n)."""
+
+
+class OutputError(GeoshapeError, OSError):
+    """An output path cannot be written: missing or read-only folder, a folder where a file
+    should go, an extension no writer supports, a full disk."""

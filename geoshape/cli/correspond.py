@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from geoshape.io.outputs import declare_outputs
+
 
 def _add_method(p) -> None:
     p.add_argument("--method", default="geoshape",
@@ -31,6 +33,7 @@ def register(subparsers) -> None:
     p.add_argument("--ply", metavar="COLORED.ply", help="source mesh coloured through the map")
     p.add_argument("--json", action="store_true", help="print timings, cost and alternatives as JSON")
     p.set_defaults(handler=run_single)
+    declare_outputs(p, out="text", plot="picture", ply="mesh")
 
     b = subparsers.add_parser("correspond-batch", help="correspondences for every pair of a pairs.csv",
                               description="For every pair in DIR/pairs.csv write "
@@ -43,6 +46,7 @@ def register(subparsers) -> None:
     b.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     b.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
     b.set_defaults(handler=run_batch)
+    declare_outputs(b, all_or_nothing=False, out_dir="folder")
 
 
 def run_single(args: argparse.Namespace) -> int:

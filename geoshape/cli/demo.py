@@ -7,6 +7,8 @@ metrics as Markdown and JSON) and prints a short summary. Runs in a few seconds.
 
 from __future__ import annotations
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -23,6 +25,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
     p.add_argument("--no-3d", action="store_true", help="skip the 3D correspondence part")
     p.set_defaults(handler=run)
+    declare_outputs(p, all_or_nothing=False, out="folder")
 
 
 def run(args) -> int:

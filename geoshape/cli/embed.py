@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -47,6 +49,7 @@ def register(subparsers) -> None:
                    help="also render the mesh coloured by the first embedding coordinate")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(handler=run)
+    declare_outputs(p, output="mesh", png="picture")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -40,6 +42,7 @@ def register(subparsers) -> None:
     d.add_argument("--no-preserve-topology", action="store_true",
                    help="allow collapses that change genus (may create non-manifold output)")
     d.set_defaults(handler=run_decimate)
+    declare_outputs(d, all_or_nothing=False, out="folder")
 
     s = sub.add_parser(
         "spikes",
@@ -54,6 +57,7 @@ def register(subparsers) -> None:
     s.add_argument("--seed", type=int, default=0, help="seed of the face draw (default 0)")
     s.add_argument("--out", required=True, metavar="OUT", help="output mesh (.off, .ply, …)")
     s.set_defaults(handler=run_spikes)
+    declare_outputs(s, out="mesh")
 
     t = sub.add_parser(
         "stretch",
@@ -71,6 +75,7 @@ def register(subparsers) -> None:
     t.add_argument("--seed", type=int, default=0, help="seed for the random centre (default 0)")
     t.add_argument("--out", required=True, metavar="OUT", help="output mesh")
     t.set_defaults(handler=run_stretch)
+    declare_outputs(t, out="mesh")
 
     a = sub.add_parser(
         "articulated",
@@ -92,6 +97,7 @@ def register(subparsers) -> None:
     a.add_argument("--amount", type=float, default=1.0,
                    help="fraction of the joint limits used by random poses (default 1)")
     a.set_defaults(handler=run_articulated)
+    declare_outputs(a, all_or_nothing=False, out="folder")
 
 
 def _missing_generator(args: argparse.Namespace) -> int:

@@ -9,6 +9,8 @@ be read or described is named on stderr and skipped; the exit code is then 1.
 
 from __future__ import annotations
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -58,6 +60,7 @@ def register(subparsers) -> None:
     q.add_argument("--plot-strip", metavar="strip.png", default=None,
                    help="also draw the query and its results in one row")
     q.set_defaults(handler=run_query)
+    declare_outputs(q, plot_strip="picture")
 
     i = sub.add_parser("info", help="list the stored descriptor sets")
     i.add_argument("db", metavar="DB")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from geoshape.io.outputs import declare_outputs
+
 METHOD_HELP = "matching method: default, gsc, shape_context, idsc, curvature_map"
 
 
@@ -21,6 +23,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours with lines between matches")
     p.set_defaults(handler=run)
+    declare_outputs(p, out="text", plot="picture")
 
 
 def run(args) -> int:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -23,6 +25,7 @@ def register(subparsers) -> None:
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
     p.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     p.set_defaults(handler=run)
+    declare_outputs(p, matrix="npy", json="text", plot="picture")
 
 
 def run(args) -> int:

@@ -9,6 +9,8 @@ command with its name (exit 2) and nothing is written.
 
 from __future__ import annotations
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RETRIEVAL_METHODS
@@ -41,6 +43,7 @@ def register(subparsers) -> None:
     p.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=int, default=None,
                    help="workers (default: all cores)")
     p.set_defaults(handler=run)
+    declare_outputs(p, matrix="npy", json="text", plot_pr="picture", plot_matrix="picture")
 
 
 def run(args) -> int:

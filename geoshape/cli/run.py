@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.io.outputs import declare_outputs
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -28,6 +30,7 @@ def register(subparsers) -> None:
                    help="write the script as run, with every parameter explicit")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(handler=run)
+    declare_outputs(p, output="mesh", save_script="text")
 
 
 def _short(value) -> str:

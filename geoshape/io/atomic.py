@@ -1,18 +1,30 @@
-"""Atomic file writing: never leave a half-written output behind.
+"""Atomic file writing: never leave a half-written output behind, nor half of a command's outputs.
 
 Every writer in geoshape goes through :func:`atomic_path` (or :func:`write_bytes_atomic`):
 the content is written to a temporary file in the destination folder, flushed, and only
 then renamed over the destination. An exception or Ctrl-C in between removes the
 temporary file and leaves any previous destination untouched.
+
+Inside :func:`staged_outputs` (the command line wraps every command in it) the renames wait
+until the whole block has succeeded: a command that writes a matrix and then fails on its
+picture leaves neither. An ``OSError`` while writing (full disk, permissions) becomes an
+:class:`~geoshape.errors.OutputError` naming the file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+
+from geoshape.errors import OutputError
+
+#: Pending ``(temporary, destination)`` renames of the innermost :func:`staged_outputs`.
+_STAGE: contextvars.ContextVar[list | None] = contextvars.ContextVar("geoshape_output_stage", default=None)
 
 
 def _default_mode() -> int:
@@ -40,20 +52,79 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     'hi'
     """
     dest = Path(path)
-    dest.parent.mkdir(parents=True, exist_ok=True)
     if suffix is None:
         suffix = "".join(dest.suffixes[-2:]) if dest.suffixes else ""
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=f".tmp{suffix}", dir=dest.parent)
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=f".tmp{suffix}", dir=dest.parent)
+    except OSError as exc:
+        raise _output_error(dest, exc) from None
     os.close(fd)
     tmp = Path(tmp_name)
+    stage = _STAGE.get()
     try:
-        yield tmp
-        os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0o600 files
-        os.replace(tmp, dest)
+        try:
+            yield tmp
+            os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0o600 files
+            if stage is None:
+                os.replace(tmp, dest)
+        except OSError as exc:
+            raise _output_error(dest, exc) from None
+        if stage is not None:
+            stage.append((tmp, dest))
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def _output_error(dest: Path, exc: OSError) -> OutputError:
+    reason = "no space left on the device" if exc.errno == errno.ENOSPC else (exc.strerror or str(exc))
+    return OutputError(f"{dest}: cannot write: {reason}")
+
+
+@contextlib.contextmanager
+def staged_outputs() -> Iterator[list]:
+    """Commit every :func:`atomic_path` output of the block together, or none of them.
+
+    Files written inside the block stay temporaries beside their destinations; when the
+    block ends without an exception they are renamed into place (each rename is atomic,
+    and nothing slow happens between them), otherwise all are removed and earlier files
+    stay untouched. Nested blocks join the outermost one.
+
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> try:
+    ...     with staged_outputs():
+    ...         write_text_atomic(d / "a.txt", "first")
+    ...         raise RuntimeError("the second output failed")
+    ... except RuntimeError:
+    ...     pass
+    >>> sorted(p.name for p in d.iterdir())
+    []
+    """
+    if _STAGE.get() is not None:  # nested: the outer block commits
+        yield _STAGE.get()
+        return
+    pending: list[tuple[Path, Path]] = []
+    token = _STAGE.set(pending)
+    try:
+        yield pending
+    except BaseException:
+        for tmp, _dest in pending:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+    finally:
+        _STAGE.reset(token)
+    for i, (tmp, dest) in enumerate(pending):
+        try:
+            os.replace(tmp, dest)
+        except OSError as exc:
+            for later, _ in pending[i:]:
+                with contextlib.suppress(OSError):
+                    later.unlink()
+            raise _output_error(dest, exc) from None
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:

@@ -1,0 +1,82 @@
+"""Output paths checked before work, and all-or-nothing writes (geoshape.io.outputs, atomic)."""
+
+from __future__ import annotations
+
+import errno
+import os
+
+import numpy as np
+import pytest
+
+from geoshape.__main__ import main
+from geoshape.errors import GeoshapeError, OutputError
+from geoshape.io.atomic import save_npy_atomic, staged_outputs, write_text_atomic
+from geoshape.io.outputs import check_output_path
+
+
+@pytest.mark.parametrize(
+    "kind, name, match",
+    [
+        ("picture", "p.xyz", "unsupported extension '.xyz'"),
+        ("npy", "m.txt", "unsupported extension '.txt'"),
+        ("mesh", "m.abc", "unsupported mesh extension"),
+    ],
+)
+def test_unsupported_extensions_are_refused(tmp_path, kind, name, match):
+    with pytest.raises(OutputError, match=match):
+        check_output_path(tmp_path / name, kind, option="--x")
+
+
+def test_missing_folder_file_parent_and_folder_path_are_refused(tmp_path):
+    (tmp_path / "f").write_text("")
+    with pytest.raises(OutputError, match="does not exist"):
+        check_output_path(tmp_path / "no" / "a.png", "picture")
+    with pytest.raises(OutputError, match="is not a folder"):
+        check_output_path(tmp_path / "f" / "a.png", "picture")
+    with pytest.raises(OutputError, match="is a folder"):
+        check_output_path(tmp_path, "text")
+    with pytest.raises(OutputError, match="not a folder"):
+        check_output_path(tmp_path / "f", "folder")
+    assert check_output_path(tmp_path / "new", "folder") == tmp_path / "new"
+    assert issubclass(OutputError, GeoshapeError)
+
+
+def test_staged_outputs_commit_together_or_not_at_all(tmp_path):
+    (tmp_path / "old.txt").write_text("earlier")
+    with pytest.raises(RuntimeError):
+        with staged_outputs():
+            write_text_atomic(tmp_path / "a.txt", "first")
+            save_npy_atomic(tmp_path / "old.txt", np.zeros(3))  # would replace an earlier file
+            assert not (tmp_path / "a.txt").exists()  # not visible before the block ends
+            raise RuntimeError("the last output failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.txt"]
+    assert (tmp_path / "old.txt").read_text() == "earlier"
+    with staged_outputs():
+        write_text_atomic(tmp_path / "a.txt", "first")
+        write_text_atomic(tmp_path / "b.txt", "second")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "old.txt"]
+
+
+def test_a_full_disk_becomes_an_output_error_and_leaves_nothing(tmp_path, monkeypatch):
+    real_fsync = os.fsync
+
+    def no_space(fd):  # a full disk shows when the data is flushed
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with staged_outputs():
+        write_text_atomic(tmp_path / "ok.txt", "kept")
+    monkeypatch.setattr(os, "fsync", no_space)
+    with pytest.raises(OutputError, match="no space left on the device"):
+        with staged_outputs():
+            write_text_atomic(tmp_path / "a.txt", "x" * 100)
+    monkeypatch.setattr(os, "fsync", real_fsync)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.txt"]
+
+
+def test_cli_checks_outputs_before_reading_inputs(tmp_path, capsys):
+    # the inputs do not exist either: the output is checked first, with one line and exit 2
+    code = main(
+        ["match2d", str(tmp_path / "a.png"), str(tmp_path / "b.png"), "--plot", str(tmp_path / "p.xyz")]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--plot" in err[0] and ".xyz" in err[0]
