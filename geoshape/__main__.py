@@ -34,10 +34,18 @@ COMMAND_MODULES = [
 ]
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line (``geoshape embed: error: argument --seed: …``), exit 2; the
+    full usage stays one ``--help`` away."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from geoshape import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="geoshape",
         description="Correspondence and retrieval of articulated 2D contours and 3D meshes.",
     )
@@ -50,12 +58,18 @@ def build_parser() -> argparse.ArgumentParser:
         module = import_if_present(f"geoshape.cli.{name}")
         if module is not None:
             module.register(subparsers)
+    from geoshape.cli._common import state_limits
+
+    state_limits(parser)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # --help, --version, or a usage error already printed
+        return stop.code if isinstance(stop.code, int) else 2
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
@@ -71,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         check_declared_outputs(args)  # before any work: a bad output path costs nothing
-        stage = staged_outputs() if getattr(args, "outputs_all_or_nothing", False) else contextlib.nullcontext()
-        with stage:
+        all_or_nothing = getattr(args, "outputs_all_or_nothing", False)
+        with staged_outputs() if all_or_nothing else contextlib.nullcontext():
             status = args.handler(args)
     except GeoshapeError as exc:
         print(f"geoshape {args.command}: error: {exc}", file=sys.stderr)

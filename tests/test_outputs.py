@@ -80,3 +80,34 @@ def test_cli_checks_outputs_before_reading_inputs(tmp_path, capsys):
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--plot" in err[0] and ".xyz" in err[0]
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["embed", "m.off", "-o", "e.ply", "--seed", "-1"], "--seed"),
+    (["match2d", "a.png", "b.png", "--n-points", "100000"], "--n-points"),
+    (["retrieval2d", "d", "--matrix", "m.npy", "--n-jobs", "0"], "--n-jobs"),
+    (["retrieval3d", "d", "--descriptor", "d2", "--matrix", "m.npy", "--rerank-k", "0"], "--rerank-k"),
+    (["index", "query", "db", "m.off", "--rerank-k", "-1"], "--rerank-k"),
+    (["correspond", "a.off", "b.off", "-o", "m.txt", "--seed", "x"], "--seed"),
+])
+def test_numeric_options_are_range_checked_at_parse_time_in_one_line(argv, option, capsys):
+    code = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and option in err[0]
+
+
+def test_help_states_the_limits(capsys):
+    assert main(["embed", "--help"]) == 0
+    assert "[0–4294967295]" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_vanishing_gaussian_width_is_refused(tmp_path, capsys):
+    import trimesh
+
+    from geoshape.io.mesh_io import save_mesh
+
+    m = trimesh.creation.icosphere(subdivisions=1)
+    save_mesh(tmp_path / "m.off", m.vertices, m.faces)
+    assert main(["embed", str(tmp_path / "m.off"), "-o", str(tmp_path / "e.ply"), "--sigma", "1e-300"]) == 2
+    assert "sigma" in capsys.readouterr().err
+    assert not (tmp_path / "e.ply").exists()

@@ -12,13 +12,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from geoshape.cli._common import SEED, WORKERS
 from geoshape.io.outputs import declare_outputs
 
 
 def _add_method(p) -> None:
     p.add_argument("--method", default="geoshape",
                    help="geoshape (default), jz, shapiro-brady, improved-sb, rigid-icp, shape-context-3d")
-    p.add_argument("--seed", type=int, default=0, help="seed of samplings (default 0)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of samplings (default 0)")
 
 
 def register(subparsers) -> None:
@@ -43,7 +44,7 @@ def register(subparsers) -> None:
     b.add_argument("--out-dir", required=True, metavar="OUT")
     _add_method(b)
     b.add_argument("--backend", default=None, help="serial, processes (default) or dask")
-    b.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    b.add_argument("--jobs", type=WORKERS, default=None, help="worker processes (default: all cores)")
     b.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
     b.set_defaults(handler=run_batch)
     declare_outputs(b, all_or_nothing=False, out_dir="folder")

@@ -7,6 +7,7 @@ metrics as Markdown and JSON) and prints a short summary. Runs in a few seconds.
 
 from __future__ import annotations
 
+from geoshape.cli._common import POSITIVE_INT, SEED
 from geoshape.io.outputs import declare_outputs
 
 
@@ -21,8 +22,8 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--method", default="default",
                    help="2D method: default, gsc, shape_context, idsc, curvature_map")
-    p.add_argument("--per-class", type=int, default=4, help="poses per class (default 4)")
-    p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
+    p.add_argument("--per-class", type=POSITIVE_INT, default=4, help="poses per class (default 4)")
+    p.add_argument("--seed", type=SEED, default=0, help="generator seed (default 0)")
     p.add_argument("--no-3d", action="store_true", help="skip the 3D correspondence part")
     p.set_defaults(handler=run)
     declare_outputs(p, all_or_nothing=False, out="folder")

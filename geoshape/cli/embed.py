@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.cli._common import POSITIVE_INT, SEED, RangeType
 from geoshape.io.outputs import declare_outputs
 
 
@@ -25,9 +26,9 @@ def register(subparsers) -> None:
     p.add_argument("mesh", metavar="MESH", help="input mesh (OFF/OBJ/PLY/STL, optionally .gz)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.ply",
                    help="embedded mesh to write; all coordinates go to OUT.npy beside it")
-    p.add_argument("--dims", type=int, default=5, metavar="K",
+    p.add_argument("--dims", type=POSITIVE_INT, default=5, metavar="K",
                    help="embedding dimensions K (K+1 eigenpairs, the first dropped; default 5)")
-    p.add_argument("--samples", type=int, default=None, metavar="L",
+    p.add_argument("--samples", type=RangeType(int, 2), default=None, metavar="L",
                    help="Nystrom samples L (forces Nystrom; default: exact for <= 2000 vertices, "
                    "else Nystrom with 50 samples)")
     p.add_argument("--method", choices=("auto", "exact", "nystrom"), default="auto",
@@ -44,7 +45,7 @@ def register(subparsers) -> None:
                    help="centre the kernel instead of dropping the first eigenvector")
     p.add_argument("--no-orthogonalize", action="store_true",
                    help="Nystrom: keep the raw extended eigenvectors (not orthogonalised)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first max-min sample")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the first max-min sample")
     p.add_argument("--png", metavar="FILE.png", default=None,
                    help="also render the mesh coloured by the first embedding coordinate")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

@@ -15,6 +15,14 @@ from __future__ import annotations
 
 import argparse
 
+from geoshape.cli._common import (
+    NONNEGATIVE_FLOAT,
+    NONNEGATIVE_INT,
+    POSITIVE_FLOAT,
+    POSITIVE_INT,
+    SEED,
+    RangeType,
+)
 from geoshape.io.outputs import declare_outputs
 
 
@@ -51,10 +59,10 @@ def register(subparsers) -> None:
         "vertex off the surface along the face normal by HEIGHT x bounding-box diagonal.",
     )
     s.add_argument("mesh", metavar="MESH")
-    s.add_argument("--count", type=int, required=True, help="number of spikes (one per face)")
-    s.add_argument("--height", type=float, required=True,
+    s.add_argument("--count", type=NONNEGATIVE_INT, required=True, help="number of spikes (one per face)")
+    s.add_argument("--height", type=NONNEGATIVE_FLOAT, required=True,
                    help="tip offset as a fraction of the bounding-box diagonal (>= 0)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the face draw (default 0)")
+    s.add_argument("--seed", type=SEED, default=0, help="seed of the face draw (default 0)")
     s.add_argument("--out", required=True, metavar="OUT", help="output mesh (.off, .ply, …)")
     s.set_defaults(handler=run_spikes)
     declare_outputs(s, out="mesh")
@@ -68,11 +76,11 @@ def register(subparsers) -> None:
     )
     t.add_argument("mesh", metavar="MESH")
     t.add_argument("--scale", help="three comma-separated positive axis factors")
-    t.add_argument("--radius", type=float, help="part stretch: ball radius, fraction of diagonal")
-    t.add_argument("--factor", type=float, help="part stretch: factor at the ball centre")
-    t.add_argument("--center", type=int, help="part stretch: centre vertex id (default: random)")
+    t.add_argument("--radius", type=POSITIVE_FLOAT, help="part stretch: ball radius, fraction of diagonal")
+    t.add_argument("--factor", type=POSITIVE_FLOAT, help="part stretch: factor at the ball centre")
+    t.add_argument("--center", type=NONNEGATIVE_INT, help="part stretch: centre vertex id (default: random)")
     t.add_argument("--direction", help="part stretch: x,y,z direction (default: principal axis)")
-    t.add_argument("--seed", type=int, default=0, help="seed for the random centre (default 0)")
+    t.add_argument("--seed", type=SEED, default=0, help="seed for the random centre (default 0)")
     t.add_argument("--out", required=True, metavar="OUT", help="output mesh")
     t.set_defaults(handler=run_stretch)
     declare_outputs(t, out="mesh")
@@ -86,15 +94,16 @@ def register(subparsers) -> None:
     a.add_argument("--out", required=True, metavar="DIR", help="output folder")
     a.add_argument("--classes", default=None,
                    help="comma-separated classes (default: all of biped,quadruped,hand,snake,octopus)")
-    a.add_argument("--instances", type=int, default=1, help="instances per class (default 1)")
-    a.add_argument("--poses", type=int, default=4, help="poses per instance (default 4)")
-    a.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    a.add_argument("--vertices", type=int, default=3000, help="vertices per mesh (default 3000)")
-    a.add_argument("--resolution", type=int, default=128,
+    a.add_argument("--instances", type=POSITIVE_INT, default=1, help="instances per class (default 1)")
+    a.add_argument("--poses", type=POSITIVE_INT, default=4, help="poses per instance (default 4)")
+    a.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
+    a.add_argument("--vertices", type=RangeType(int, 20), default=3000,
+                   help="vertices per mesh (default 3000)")
+    a.add_argument("--resolution", type=RangeType(int, 16, 4096), default=128,
                    help="voxels along the longest side before polygonisation (default 128)")
-    a.add_argument("--variation", type=float, default=0.15,
+    a.add_argument("--variation", type=NONNEGATIVE_FLOAT, default=0.15,
                    help="intra-class limb length/thickness variation (default 0.15)")
-    a.add_argument("--amount", type=float, default=1.0,
+    a.add_argument("--amount", type=NONNEGATIVE_FLOAT, default=1.0,
                    help="fraction of the joint limits used by random poses (default 1)")
     a.set_defaults(handler=run_articulated)
     declare_outputs(a, all_or_nothing=False, out="folder")

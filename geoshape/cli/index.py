@@ -9,6 +9,7 @@ be read or described is named on stderr and skipped; the exit code is then 1.
 
 from __future__ import annotations
 
+from geoshape.cli._common import POSITIVE_INT, SEED, WORKERS
 from geoshape.io.outputs import declare_outputs
 
 
@@ -35,11 +36,11 @@ def register(subparsers) -> None:
     a.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (tcp://host:port); default: local processes")
     a.add_argument("--backend", default=None, help="processes (default), serial, dask")
-    a.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=int, default=None,
+    a.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=WORKERS, default=None,
                    help="worker processes (default: all cores)")
-    a.add_argument("--batch-size", type=int, default=None, metavar="N",
+    a.add_argument("--batch-size", type=POSITIVE_INT, default=None, metavar="N",
                    help="files per committed batch (default 4 x workers)")
-    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--seed", type=SEED, default=0)
     a.add_argument("--json", action="store_true", help="print the summary as JSON")
     a.set_defaults(handler=run_add)
 
@@ -48,14 +49,14 @@ def register(subparsers) -> None:
                        "parameters and list the closest stored shapes.")
     q.add_argument("db", metavar="DB")
     q.add_argument("mesh", metavar="MESH")
-    q.add_argument("--top", type=int, default=10, help="number of results (default 10)")
+    q.add_argument("--top", type=POSITIVE_INT, default=10, help="number of results (default 10)")
     q.add_argument("--descriptor", default="evd", metavar="NAME", help="ranking descriptor (default evd)")
     q.add_argument("--rerank", default=None, metavar="NAME",
                    help="re-rank the shortlist by this descriptor (ccd)")
-    q.add_argument("--rerank-k", type=int, default=None, metavar="K",
+    q.add_argument("--rerank-k", type=POSITIVE_INT, default=None, metavar="K",
                    help="shortlist size for re-ranking (default max(top, 20))")
     q.add_argument("--affinity", default=None, metavar="KIND")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--seed", type=SEED, default=0)
     q.add_argument("--json", action="store_true", help="print the results as JSON")
     q.add_argument("--plot-strip", metavar="strip.png", default=None,
                    help="also draw the query and its results in one row")

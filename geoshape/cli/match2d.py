@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from geoshape.cli._common import CONTOUR_POINTS
 from geoshape.io.outputs import declare_outputs
 
 METHOD_HELP = "matching method: default, gsc, shape_context, idsc, curvature_map"
@@ -19,7 +20,7 @@ def register(subparsers) -> None:
     p.add_argument("--method", default="default", help=METHOD_HELP)
     p.add_argument("--matcher", default=None,
                    help="override the method's matcher: best, proximity, hungarian, dp")
-    p.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours with lines between matches")
     p.set_defaults(handler=run)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from geoshape.cli._common import CONTOUR_POINTS, WORKERS
 from geoshape.io.outputs import declare_outputs
 
 
@@ -21,9 +22,9 @@ def register(subparsers) -> None:
     p.add_argument("--matrix", required=True, help="output .npy of the N x N matrix")
     p.add_argument("--json", help="output JSON with the metrics and timing")
     p.add_argument("--plot", help="output picture of the matrix")
-    p.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
-    p.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
+    p.add_argument("--n-jobs", type=WORKERS, default=None, help="workers (default: all cores)")
     p.set_defaults(handler=run)
     declare_outputs(p, matrix="npy", json="text", plot="picture")
 

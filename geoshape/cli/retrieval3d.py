@@ -9,6 +9,7 @@ command with its name (exit 2) and nothing is written.
 
 from __future__ import annotations
 
+from geoshape.cli._common import POSITIVE_INT, SEED, WORKERS
 from geoshape.io.outputs import declare_outputs
 
 
@@ -34,13 +35,13 @@ def register(subparsers) -> None:
     p.add_argument("--json", metavar="OUT.json", help="output JSON with metrics and timing")
     p.add_argument("--plot-pr", metavar="pr.png", help="output precision-recall curve")
     p.add_argument("--plot-matrix", metavar="m.png", help="output similarity-matrix image")
-    p.add_argument("--rerank-k", type=int, default=None, metavar="K",
+    p.add_argument("--rerank-k", type=POSITIVE_INT, default=None, metavar="K",
                    help="evd_ccd: shortlist re-ranked by CCD (default 20)")
-    p.add_argument("--seed", type=int, default=0, help="seed of sampling (default 0)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of sampling (default 0)")
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (implies --backend dask)")
-    p.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=int, default=None,
+    p.add_argument("--jobs", "--n-jobs", dest="n_jobs", type=WORKERS, default=None,
                    help="workers (default: all cores)")
     p.set_defaults(handler=run)
     declare_outputs(p, matrix="npy", json="text", plot_pr="picture", plot_matrix="picture")

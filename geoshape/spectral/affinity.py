@@ -25,6 +25,10 @@ __all__ = [
 
 AFFINITY_KINDS = ("geodesic", "euclidean", "combined")
 SIGMA_RULES = ("max", "mean")
+#: Smallest width factor ρ (of the mean distance). Unit-free: at ρ = 1e-6 every off-diagonal
+#: affinity is already exp(-10¹²·(d/mean)²) = 0, so the kernel is the identity for any
+#: smaller ρ too; below it σ² itself can underflow and the kernel is undefined.
+MIN_SIGMA_FACTOR = 1e-6
 
 
 def parse_sigma(sigma) -> str | float:
@@ -41,9 +45,10 @@ def parse_sigma(sigma) -> str | float:
         except ValueError:
             return check_choice("sigma", sigma, SIGMA_RULES + ("<positive number rho>",))
     rho = float(sigma)
-    if not np.isfinite(rho) or rho <= 0:
+    if not np.isfinite(rho) or rho < MIN_SIGMA_FACTOR:
         raise InvalidOptionError(
-            f"sigma must be 'max', 'mean' or a positive factor of the mean distance, got {sigma!r}"
+            f"sigma must be 'max', 'mean' or a factor of the mean distance ≥ {MIN_SIGMA_FACTOR:g}, "
+            f"got {sigma!r}"
         )
     return rho
 
