@@ -14,6 +14,7 @@ Data is located through ``$GEOSHAPE_DATA`` or ``../shared/data`` beside the chec
 from __future__ import annotations
 
 import csv
+import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,6 +60,18 @@ def dataset_dir(name: str, required: bool = True) -> Path | None:
     return folder
 
 
+def _open_csv(path: Path):
+    """Open a CSV for reading: UTF-8 with or without a byte-order mark (as spreadsheets
+    write it); undecodable bytes are a :class:`DatasetError` naming the file."""
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read: {exc.strerror}") from None
+    return io.StringIO(text, newline="")
+
+
 @dataclass(frozen=True)
 class LabelledItem:
     path: Path
@@ -75,7 +88,7 @@ def read_labels(folder: str | os.PathLike, filename: str = "labels.csv") -> list
     path = folder / filename
     if not path.is_file():
         raise DatasetError(f"{path}: no such labels file (expected columns file,label)")
-    with open(path, newline="", encoding="utf-8") as fh:
+    with _open_csv(path) as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or not {"file", "label"} <= set(reader.fieldnames):
             raise DatasetError(
@@ -83,12 +96,14 @@ def read_labels(folder: str | os.PathLike, filename: str = "labels.csv") -> list
             )
         items = []
         for lineno, row in enumerate(reader, start=2):
-            if not row.get("file"):
+            if not (row.get("file") or "").strip():
                 raise DatasetError(f"{path}:{lineno}: empty 'file' field")
+            if not (row.get("label") or "").strip():
+                raise DatasetError(f"{path}:{lineno}: row {row['file']!r} has no label")
             item_path = folder / row["file"]
             if not item_path.is_file():
                 raise DatasetError(f"{path}:{lineno}: listed file {row['file']!r} does not exist")
-            items.append(LabelledItem(item_path, str(row["label"])))
+            items.append(LabelledItem(item_path, row["label"].strip()))
     if not items:
         raise DatasetError(f"{path}: no rows")
     return items
@@ -142,14 +157,16 @@ def read_pairs(
         raise DatasetError(f"{path}: no such pairs file")
     required = {"source", "target"}
     pairs = []
-    with open(path, newline="", encoding="utf-8") as fh:
+    with _open_csv(path) as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or not required <= set(reader.fieldnames):
             raise DatasetError(
                 f"{path}: header must contain 'source' and 'target', got {reader.fieldnames}"
             )
         for lineno, row in enumerate(reader, start=2):
-            src, tgt = folder / row["source"], folder / row["target"]
+            if not (row.get("source") or "").strip() or not (row.get("target") or "").strip():
+                raise DatasetError(f"{path}:{lineno}: a row needs both a source and a target mesh")
+            src, tgt = folder / row["source"].strip(), folder / row["target"].strip()
             if check_files:
                 for p in (src, tgt):
                     if not p.is_file():
