@@ -52,6 +52,23 @@ def _one_pair(task: dict) -> dict:
             "timings": result.timings}
 
 
+def _refuse_colliding_names(tasks: list[dict], pairs_file: str) -> None:
+    """Two different pairs whose files share stems would write one map file: refuse before
+    any work (the ``<source_stem>__<target_stem>.txt`` names are a contract, so they are not
+    renamed), naming both pairs. A pair listed twice is computed twice into the same file."""
+    first: dict[str, tuple[str, str]] = {}
+    for task in tasks:
+        pair = (task["source"], task["target"])
+        seen = first.setdefault(task["out"], pair)
+        if seen != pair:
+            from geoshape.errors import DatasetError
+
+            raise DatasetError(
+                f"{pairs_file}: pairs {seen[0]} -> {seen[1]} and {pair[0]} -> {pair[1]} would both write "
+                f"{Path(task['out']).name}; rename one of the meshes or split the pairs file"
+            )
+
+
 def correspond_batch(folder: str | os.PathLike, out_dir: str | os.PathLike, *, pairs_file: str = "pairs.csv",
                      method: str = "geoshape", seed: int = 0, backend: str | None = None,
                      n_jobs: int | None = None, scheduler=None, progress: bool = True) -> dict:
@@ -74,6 +91,7 @@ def correspond_batch(folder: str | os.PathLike, out_dir: str | os.PathLike, *, p
     pairs = read_pairs(folder, pairs_file, check_files=False)
     tasks = [{"source": str(p.source), "target": str(p.target), "method": method, "seed": seed,
               "out": str(out / f"{mesh_stem(p.source)}__{mesh_stem(p.target)}.txt")} for p in pairs]
+    _refuse_colliding_names(tasks, pairs_file)
     # chunks of consecutive pairs share meshes in a worker's cache
     chunksize = max(1, len(tasks) // (4 * (n_jobs or os.cpu_count() or 1)))
     results = run_map(_one_pair, tasks, backend=backend, n_jobs=n_jobs, scheduler=scheduler,
