@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 # Sub-command modules, in the order --help lists them. A module that does not exist
 # yet is skipped, so each feature registers itself by adding its file.
@@ -64,7 +65,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, isolate: bool | None = None) -> int:
+    """Run one command line; return its exit status.
+
+    With ``isolate`` (default: only when ``argv`` is None, i.e. the real command line) the
+    command runs in a forked child so that a crash in native code is reported in one line
+    (:mod:`geoshape.cli.isolation`).
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -85,18 +92,36 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         check_declared_outputs(args)  # before any work: a bad output path costs nothing
-        all_or_nothing = getattr(args, "outputs_all_or_nothing", False)
-        with staged_outputs() if all_or_nothing else contextlib.nullcontext():
-            status = args.handler(args)
     except GeoshapeError as exc:
         print(f"geoshape {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"geoshape {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:
-        return 0
-    return int(status or 0)
+
+    def work() -> int:
+        try:
+            all_or_nothing = getattr(args, "outputs_all_or_nothing", False)
+            with staged_outputs() if all_or_nothing else contextlib.nullcontext():
+                status = args.handler(args)
+        except GeoshapeError as exc:
+            print(f"geoshape {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"geoshape {args.command}: interrupted", file=sys.stderr)
+            return 130
+        except BrokenPipeError:
+            return 0
+        return int(status or 0)
+
+    from geoshape.cli.isolation import can_isolate, run_isolated
+
+    if isolate is None:
+        isolate = argv is None  # the real command line; in-process callers (tests) see exceptions
+    if not (isolate and can_isolate()):
+        return work()
+    outputs = [Path(getattr(args, dest)) for dest in (getattr(args, "outputs", None) or {})
+               if getattr(args, dest, None)]
+    given = sys.argv[1:] if argv is None else argv
+    inputs = [a for a in given if not a.startswith("-") and Path(a).exists() and Path(a) not in outputs]
+    return run_isolated(work, command=args.command, inputs=inputs, outputs=outputs)
 
 
 if __name__ == "__main__":

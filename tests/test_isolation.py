@@ -1,0 +1,54 @@
+"""A crash in native code becomes one line and exit 2 (geoshape.cli.isolation)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from geoshape.cli.isolation import can_isolate
+
+pytestmark = pytest.mark.skipif(not can_isolate(), reason="needs fork (POSIX)")
+
+CRASH = textwrap.dedent('''
+    import os, signal, sys
+    from pathlib import Path
+    from geoshape.cli.isolation import run_isolated
+    from geoshape.io.atomic import atomic_path
+
+    out = Path(sys.argv[1])
+
+    def work():
+        with atomic_path(out) as tmp:
+            tmp.write_text("half")
+            os.kill(os.getpid(), signal.SIG{sig})  # dies with the temporary on disk
+        return 0
+
+    sys.exit(run_isolated(work, command="demo", inputs=["in.off"], outputs=[out]))
+''')
+
+
+@pytest.mark.parametrize("sig", ["SEGV", "ABRT", "BUS"])
+def test_a_native_crash_is_one_line_exit_2_and_leaves_no_temporary(tmp_path, sig):
+    out = tmp_path / "result.ply"
+    done = subprocess.run([sys.executable, "-c", CRASH.replace("{sig}", sig), str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"native code crashed (SIG{sig})" in lines[0] and "in.off" in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_childs_exit_status_and_output_pass_through(tmp_path):
+    script = textwrap.dedent('''
+        import sys
+        from geoshape.cli.isolation import run_isolated
+        def work():
+            print("from the child")
+            return 7
+        sys.exit(run_isolated(work, command="demo", inputs=[], outputs=[]))
+    ''')
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 7 and done.stdout.strip() == "from the child"
