@@ -63,6 +63,10 @@ def register(subparsers) -> None:
     q.set_defaults(handler=run_query)
     declare_outputs(q, plot_strip="picture")
 
+    r = sub.add_parser("prune", help="delete the rows of files that no longer exist")
+    r.add_argument("db", metavar="DB")
+    r.set_defaults(handler=run_prune)
+
     i = sub.add_parser("info", help="list the stored descriptor sets")
     i.add_argument("db", metavar="DB")
     i.add_argument("--json", action="store_true")
@@ -109,17 +113,21 @@ def run_add(args) -> int:
                       backend=args.backend, n_jobs=args.n_jobs, scheduler=args.scheduler,
                       batch_size=args.batch_size, progress=progress if args.verbose else None)
         total = idx.count()
+        if total == 0:  # nothing stored: a new database file is not left behind
+            idx._discard_if_new_and_empty()
     for path, msg in rep.failed:
         print(f"geoshape index add: skipped {msg if path in msg else f'{path}: {msg}'}",
               file=sys.stderr)
+    busy = f", {rep.claimed_elsewhere} being added by another process" if rep.claimed_elsewhere else ""
     summary = {"db": str(args.db), "descriptors": names, "added": rep.added,
+               "claimed_elsewhere": rep.claimed_elsewhere,
                "skipped_unchanged": rep.skipped, "failed": [p for p, _ in rep.failed],
                "batches": rep.batches, "rows_in_index": total, "seconds": rep.seconds}
     if args.json:
         print_json(summary)
     else:
-        print(f"{rep.added} descriptors added, {rep.skipped} unchanged, {len(rep.failed)} files "
-              f"failed, {rep.batches} batches, {rep.seconds:.1f} s; {total} rows in {args.db}")
+        print(f"{rep.added} descriptors added, {rep.skipped} unchanged{busy}, {len(rep.failed)} files "
+          f"failed, {rep.batches} batches, {rep.seconds:.1f} s; {total} rows in {args.db}")
     return 1 if rep.failed else 0
 
 
@@ -156,6 +164,15 @@ def run_query(args) -> int:
         print(f"{h.rank:3d}  {h.distance:.6g}  {h.path}{extra}")
     print(f"query descriptor {timing['seconds_descriptor']:.3f} s, search "
           f"{1000 * timing['seconds_search']:.1f} ms")
+    return 0
+
+
+def run_prune(args) -> int:
+    with _open(args.db, must_exist=True) as idx:
+        gone = idx.prune()
+    for path in gone:
+        print(f"removed {path}")
+    print(f"{len(gone)} missing files removed from {args.db}")
     return 0
 
 

@@ -15,6 +15,15 @@ Robustness
 - **Consistent readers.** The database is in WAL mode: readers see the last committed
   batch, never half of one, and are not blocked by a writer.
 - **Bad files** are reported by name and skipped; the batch goes on.
+- **Only its own files.** A database is recognised by ``PRAGMA application_id``; any other
+  SQLite file (or any other file) is refused and never written to. A first ``add`` that
+  fails before storing anything leaves no database file behind.
+- **Concurrent adds.** Opening waits on locks (also while a fresh database is being set
+  up by another process), and each batch first *claims* its (file, descriptor, parameters)
+  rows in one transaction: a second ``add`` of the same files skips the claimed ones
+  instead of computing them again. Claims of a process that died are ignored.
+- **Missing files.** A query never returns a file that no longer exists;
+  :meth:`ShapeIndex.prune` deletes its rows (``geoshape index prune``).
 
 Queries load the stored descriptors of one (descriptor, parameters) set into memory once
 (re-loaded when the index changes) and rank them with the descriptor's metric: a top-10
@@ -23,6 +32,7 @@ query over 10,000 EVD rows is a vectorised χ² plus a partial sort.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -39,6 +49,10 @@ __all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs"
            "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION"]
 
 SCHEMA_VERSION = 1
+#: ``PRAGMA application_id`` of a geoshape index (the bytes "GSHP")
+APPLICATION_ID = 0x47534850
+#: Seconds after which a claim of a process on another host is considered abandoned.
+CLAIM_LIFETIME = 3600.0
 #: descriptors stored by ``index add`` when none is named: EVD to rank, CCD to re-rank
 DEFAULT_INDEX_DESCRIPTORS = ("evd", "ccd")
 
@@ -56,6 +70,15 @@ CREATE TABLE IF NOT EXISTS entries (
     PRIMARY KEY (path, descriptor, params)
 );
 CREATE INDEX IF NOT EXISTS entries_by_descriptor ON entries (descriptor, params);
+CREATE TABLE IF NOT EXISTS claims (
+    path TEXT NOT NULL,
+    descriptor TEXT NOT NULL,
+    params TEXT NOT NULL,
+    host TEXT NOT NULL,
+    pid INTEGER NOT NULL,
+    since REAL NOT NULL,
+    PRIMARY KEY (path, descriptor, params)
+);
 """
 
 
@@ -108,6 +131,7 @@ class AddReport:
     failed: list[tuple[str, str]] = field(default_factory=list)  # (path, message)
     batches: int = 0
     seconds: float = 0.0
+    claimed_elsewhere: int = 0  # rows another concurrent add was computing
 
 
 @dataclass(frozen=True)
@@ -141,25 +165,78 @@ class ShapeIndex:
         self.path = Path(path)
         if self.path.parent and not self.path.parent.exists():
             raise DatasetError(f"{self.path}: folder {self.path.parent} does not exist")
+        if self.path.is_dir():
+            raise DatasetError(f"{self.path}: is a folder, not an index file")
+        self._created = not self.path.exists() or self.path.stat().st_size == 0
         try:
             self._conn = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None)
-            self._conn.execute("PRAGMA journal_mode=WAL")
-            self._conn.execute("PRAGMA synchronous=NORMAL")
-            self._conn.executescript(_SCHEMA)
-            self._conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)",
-                               (str(SCHEMA_VERSION),))
-        except sqlite3.DatabaseError as exc:
-            raise DatasetError(f"{self.path}: not a geoshape index ({exc})") from None
+        except sqlite3.Error as exc:
+            raise DatasetError(f"{self.path}: cannot open: {exc}") from None
+        deadline = time.monotonic() + timeout
+        while True:  # a fresh database set up by two processes at once: wait, then re-check
+            try:
+                self._set_up()
+                break
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) and "busy" not in str(exc) or time.monotonic() > deadline:
+                    self._conn.close()
+                    raise DatasetError(f"{self.path}: cannot open the index: {exc}") from None
+                time.sleep(0.05)
+            except sqlite3.DatabaseError as exc:
+                self._conn.close()
+                raise DatasetError(f"{self.path}: not a geoshape index ({exc})") from None
         self._cache: dict = {}
+
+    def _set_up(self) -> None:
+        """Check that the file is a geoshape index (or empty), then create the schema.
+
+        Raises :class:`DatasetError` for any other database, before writing anything.
+        """
+        conn = self._conn
+        conn.execute("BEGIN IMMEDIATE")  # one process sets a fresh database up at a time
+        try:
+            app_id = conn.execute("PRAGMA application_id").fetchone()[0]
+            tables = [r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+            if app_id != APPLICATION_ID and (app_id != 0 or tables):
+                raise DatasetError(
+                    f"{self.path}: not a geoshape index (a SQLite database with tables "
+                    f"{', '.join(tables) or 'none'}); refusing to write into it")
+            if app_id == 0:
+                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+            for statement in filter(str.strip, _SCHEMA.split(";")):
+                conn.execute(statement)
+            conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+        conn.execute("COMMIT")
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA synchronous=NORMAL")
 
     # -- context manager -----------------------------------------------------------------
     def close(self) -> None:
-        self._conn.close()
+        with contextlib.suppress(sqlite3.Error):
+            self._conn.close()
+
+    def _discard_if_new_and_empty(self) -> None:
+        """Close and delete the database file this object created, if it stores nothing."""
+        if not self._created:
+            return
+        try:
+            empty = self.count() == 0
+        except sqlite3.Error:
+            empty = True
+        if empty:
+            self._conn.close()
+            for suffix in ("", "-wal", "-shm"):
+                Path(str(self.path) + suffix).unlink(missing_ok=True)
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, *exc):
+        if exc_type is not None:  # nothing stored by a failed first use: leave no file
+            self._discard_if_new_and_empty()
         self.close()
 
     # -- contents ------------------------------------------------------------------------
@@ -195,15 +272,77 @@ class ShapeIndex:
                   for p, d, pk, sha, a, s in rows]
         if not packed:
             return
-        self._conn.execute("BEGIN IMMEDIATE")
+        try:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                self._conn.executemany(
+                    "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
+                    "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+        except sqlite3.Error as exc:  # a full disk, a read-only file: one clear line
+            raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
+
+    # -- claims (concurrent adds) --------------------------------------------------------
+    def _claim(self, tasks: list[tuple[str, str, str]], shas: list[str]) -> set[tuple[str, str, str]]:
+        """Claim ``(path, descriptor, params)`` rows that are neither stored with the same
+        content hash ``shas`` nor claimed by a live process; return the ones this process may
+        compute. One transaction, so two adds never both win."""
+        import socket
+
+        host, pid, now = socket.gethostname(), os.getpid(), time.time()
+        mine = set()
+        try:
+            self._conn.execute("BEGIN IMMEDIATE")
+            try:
+                for task, sha in zip(tasks, shas, strict=True):
+                    stored = self._conn.execute(
+                        "SELECT sha256 FROM entries WHERE path = ? AND descriptor = ? AND params = ?",
+                        task).fetchone()
+                    if stored is not None and stored[0] == sha:  # another add finished it
+                        continue
+                    row = self._conn.execute(
+                        "SELECT host, pid, since FROM claims "
+                        "WHERE path = ? AND descriptor = ? AND params = ?", task).fetchone()
+                    if row is not None and (row[0], row[1]) != (host, pid) and _claim_alive(*row, host, now):
+                        continue
+                    self._conn.execute("INSERT OR REPLACE INTO claims VALUES (?, ?, ?, ?, ?, ?)",
+                                       (*task, host, pid, now))
+                    mine.add(task)
+            except BaseException:
+                self._conn.execute("ROLLBACK")
+                raise
+            self._conn.execute("COMMIT")
+        except sqlite3.Error as exc:
+            raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
+        return mine
+
+    def _release(self, tasks) -> None:
+        import socket
+
+        host, pid = socket.gethostname(), os.getpid()
         try:
             self._conn.executemany(
-                "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
-                "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
-        except BaseException:
-            self._conn.execute("ROLLBACK")
-            raise
-        self._conn.execute("COMMIT")
+                "DELETE FROM claims WHERE path = ? AND descriptor = ? AND params = ? "
+                "AND host = ? AND pid = ?", [(*t, host, pid) for t in tasks])
+        except sqlite3.Error:
+            pass  # stale claims of a dead process are ignored by the next add
+
+    def prune(self) -> list[str]:
+        """Delete the rows of files that no longer exist; return their paths."""
+        paths = [r[0] for r in self._conn.execute("SELECT DISTINCT path FROM entries")]
+        gone = [p for p in paths if not Path(p).is_file()]
+        if gone:
+            try:
+                self._conn.execute("BEGIN IMMEDIATE")
+                self._conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
+                self._conn.execute("COMMIT")
+            except sqlite3.Error as exc:
+                raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
+            self._cache.clear()
+        return gone
 
     # -- adding --------------------------------------------------------------------------
     def add(self, inputs, descriptors=DEFAULT_INDEX_DESCRIPTORS, *, affinity: str | None = None,
@@ -276,6 +415,13 @@ class ShapeIndex:
             for start in range(0, len(todo), batch_size):
                 batch = todo[start : start + batch_size]
                 tasks = [(f, sha, nm) for f, sha, need in batch for nm in need]
+                keys = [(str(f), nm, pkeys[nm]) for f, _, nm in tasks]
+                mine = self._claim(keys, [sha for _, sha, _ in tasks])
+                report.claimed_elsewhere += len(keys) - len(mine)
+                tasks = [t for t, key in zip(tasks, keys, strict=True) if key in mine]
+                if not tasks:
+                    report.batches += 1
+                    continue
                 items = [(str(f), nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
                          for f, _, nm in tasks]
                 from geoshape.parallel import run_map
@@ -290,12 +436,18 @@ class ShapeIndex:
                         rows.append((f, nm, pkeys[nm], sha, res[0], res[1]))
                 # A file that failed one descriptor is stored for none: all or nothing per file.
                 rows = [r for r in rows if str(r[0]) not in bad]
-                self.insert_rows(rows)
+                try:
+                    self.insert_rows(rows)
+                finally:
+                    self._release(mine)
                 report.added += len(rows)
                 report.failed.extend(bad.items())
                 report.batches += 1
                 if progress is not None:
                     progress(min(start + batch_size, len(todo)), len(todo))
+        except BaseException:
+            self._discard_if_new_and_empty()
+            raise
         finally:
             if owned and client is not None:
                 cluster = getattr(client, "cluster", None)
@@ -351,7 +503,7 @@ class ShapeIndex:
 
     def query_descriptor(self, q, descriptor: str, *, top: int = 10, affinity: str | None = None,
                          seed: int = 0, rerank: str | None = None, rerank_q=None,
-                         rerank_k: int | None = None) -> list[Hit]:
+                         rerank_k: int | None = None, skip_missing: bool = False) -> list[Hit]:
         """Rank the stored shapes against a query descriptor already computed.
 
         Parameters
@@ -368,6 +520,8 @@ class ShapeIndex:
             query descriptor is ``rerank_q``.
         rerank_k : int or None
             Shortlist size; default ``max(top, 20)``.
+        skip_missing : bool
+            Never return a file that no longer exists (only the shortlist is checked on disk).
 
         Returns
         -------
@@ -388,8 +542,17 @@ class ShapeIndex:
         d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
         m = len(paths)
         k = min(m, max(top, rerank_k or 20) if rerank else top)
-        cand = np.argpartition(d, k - 1)[:k] if k < m else np.arange(m)
-        cand = cand[np.lexsort((cand, d[cand]))]
+        cand = _nearest_first(d, k)
+        if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
+            while True:
+                present = [i for i in cand if Path(paths[i]).is_file()]
+                if len(present) >= k or len(cand) == m:
+                    break
+                cand = _nearest_first(d, min(m, 2 * len(cand) + k))
+            if not present:
+                raise DatasetError(f"{self.path}: none of the stored files exists any more "
+                                   "(run 'geoshape index prune')")
+            cand = np.asarray(present[:k], dtype=np.int64)
         if not rerank:
             return [Hit(r + 1, paths[i], float(d[i])) for r, i in enumerate(cand[:top])]
         rspec = get_descriptor(rerank)
@@ -406,7 +569,7 @@ class ShapeIndex:
 
     def query_mesh(self, V, F, descriptor: str = "evd", *, top: int = 10,
                    affinity: str | None = None, seed: int = 0, rerank: str | None = None,
-                   rerank_k: int | None = None) -> tuple[list[Hit], dict]:
+                   rerank_k: int | None = None, skip_missing: bool = True) -> tuple[list[Hit], dict]:
         """Describe a mesh and rank the stored shapes against it.
 
         Returns
@@ -415,8 +578,8 @@ class ShapeIndex:
         timing : dict
             ``seconds_descriptor`` (query descriptors) and ``seconds_search``.
         """
+        from geoshape.parallel import single_thread_blas
         from geoshape.retrieval.descriptors import compute_descriptor, get_descriptor
-        from geoshape.retrieval.meshes import single_thread_blas
 
         t0 = time.perf_counter()
         spec = get_descriptor(descriptor)
@@ -430,6 +593,31 @@ class ShapeIndex:
                                         affinity=affinity if rspec.uses_affinity else None)
         t1 = time.perf_counter()
         hits = self.query_descriptor(q, descriptor, top=top, affinity=affinity, seed=seed,
-                                     rerank=rerank, rerank_q=rq, rerank_k=rerank_k)
+                                     rerank=rerank, rerank_q=rq, rerank_k=rerank_k,
+                                     skip_missing=skip_missing)
         t2 = time.perf_counter()
         return hits, {"seconds_descriptor": t1 - t0, "seconds_search": t2 - t1}
+
+
+def _nearest_first(d: np.ndarray, k: int) -> np.ndarray:
+    """Indices of the ``k`` smallest entries of ``d``, ascending (ties by index); O(M + k log k)."""
+    m = len(d)
+    cand = np.argpartition(d, k - 1)[:k] if k < m else np.arange(m)
+    return cand[np.lexsort((cand, d[cand]))]
+
+
+def _claim_alive(host: str, pid: int, since: float, my_host: str, now: float) -> bool:
+    """Is a claim still held? Same host: its process lives. Another host: younger than
+    :data:`CLAIM_LIFETIME`."""
+    if host != my_host:
+        return now - since < CLAIM_LIFETIME
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:  # a process that died but was not reaped (a zombie) holds nothing
+        return Path(f"/proc/{int(pid)}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
