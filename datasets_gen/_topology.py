@@ -13,6 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from geoshape.geometry.mesh import vertex_components
+
 
 @dataclass(frozen=True)
 class TopologyReport:
@@ -131,11 +133,9 @@ def topology_report(F: np.ndarray) -> TopologyReport:
         per_vertex = np.bincount(fans[:, 0], minlength=n_id)
         n_nonmanifold_v = int(np.sum(per_vertex > 1))
     n_comp = 0
-    if m:
-        faces_idx = np.repeat(np.arange(m), 3)
-        inc = sp.coo_matrix((np.ones(3 * m), (faces_idx, F.ravel())), shape=(m, int(F.max()) + 1))
-        adj = (inc @ inc.T).tocsr()
-        n_comp, _ = connected_components(adj, directed=False)
+    if m:  # faces sharing a vertex <=> their vertices are joined by face edges
+        _, comp = vertex_components(int(F.max()) + 1, F)
+        n_comp = len(np.unique(comp[used]))
     return TopologyReport(
         n_vertices=n_v,
         n_faces=m,

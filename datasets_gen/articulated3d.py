@@ -302,13 +302,10 @@ def _implicit_grid(sk: Skeleton, resolution: int, blend: float):
 
 
 def _largest_component(V, F):
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
+    from geoshape.geometry.mesh import vertex_components
 
     n = len(V)
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
-    G = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
-    _, label = connected_components(G, directed=False)
+    _, label = vertex_components(n, F)
     keep_label = np.bincount(label[F[:, 0]]).argmax()
     F = F[label[F[:, 0]] == keep_label]
     used = np.unique(F)

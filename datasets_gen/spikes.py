@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import face_normals
 from geoshape.io.validate import check_mesh
 
 __all__ = ["Spiked", "add_spikes"]
@@ -105,7 +106,7 @@ def add_spikes(V, F, count: int, height: float, *, seed: int = 0) -> Spiked:
             f"spike height must be a finite fraction of the bounding-box diagonal >= 0, got {height!r}"
         )
     n, m = len(V), len(F)
-    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # (m, 3)
+    cross = face_normals(V, F, unit=False)  # (m, 3)
     norm = np.linalg.norm(cross, axis=1)
     usable = np.flatnonzero(norm > 0)
     if count > len(usable):

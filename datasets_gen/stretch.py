@@ -76,15 +76,12 @@ def graph_distances(V, F, source: int, limit: float = np.inf) -> np.ndarray:
     -----
     Time O(m log n) at most, less with a small ``limit``; memory O(n + m).
     """
-    import scipy.sparse as sp
     from scipy.sparse.csgraph import dijkstra
 
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    E = np.unique(np.sort(E, axis=1), axis=0)
-    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
-    n = len(V)
-    G = sp.coo_matrix((w, (E[:, 0], E[:, 1])), shape=(n, n)).tocsr()
-    return dijkstra(G, directed=False, indices=int(source), limit=limit)
+    from geoshape.geometry.mesh import edge_graph
+
+    G = edge_graph(V, F, raw_lengths=True)  # symmetric
+    return dijkstra(G, directed=True, indices=int(source), limit=limit)
 
 
 class StretchedPart(NamedTuple):

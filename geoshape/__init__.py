@@ -29,10 +29,10 @@ _LAZY = {
     "save_mesh": "geoshape.io.mesh_io",
     "check_mesh": "geoshape.io.validate",
     "check_contour": "geoshape.io.validate",
-    "mesh_report": "geoshape.io.report",
+    "mesh_report": "geoshape.geometry.report",
     "as_arrays": "geoshape.io.interop",
     "load_silhouette": "geoshape.io.silhouette",
-    "extract_contour": "geoshape.io.silhouette",
+    "extract_contour": "geoshape.geometry.contour",
 }
 
 __all__ = [

@@ -378,7 +378,7 @@ register(Filter(
 
 # ---- mesh_report ------------------------------------------------------------------------
 def _report_apply(ms, p, progress):
-    from geoshape.io.report import mesh_report, report_problems
+    from geoshape.geometry.report import mesh_report, report_problems
 
     mesh = ms.current_mesh()
     report = mesh_report(mesh.V, mesh.F, name=mesh.name)

@@ -24,7 +24,7 @@ from geoshape_datasets_gen.spikes import add_spikes
 from geoshape_datasets_gen.stretch import MAX_PART_FACTOR, graph_distances, stretch_axes, stretch_part
 
 from geoshape.errors import GeoshapeError, InvalidOptionError
-from geoshape.io.report import mesh_report
+from geoshape.geometry.report import mesh_report
 
 # ----------------------------------------------------------------------------- topology
 

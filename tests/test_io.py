@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from conftest import grid_mesh, icosphere, shared_dataset
 
-from geoshape.errors import DatasetError, GeoshapeError, InvalidMeshError, InvalidOptionError
+from geoshape.errors import DatasetError, InvalidMeshError, InvalidOptionError
+from geoshape.geometry.report import mesh_report, report_problems
 from geoshape.io.atomic import atomic_path
 from geoshape.io.datasets import mesh_stem, read_labels, read_pairs
 from geoshape.io.mesh_io import load_mesh, save_mesh
-from geoshape.io.report import mesh_report, report_problems
 from geoshape.io.validate import check_mesh
 
 # ---------------------------------------------------------------- validation
@@ -256,16 +256,10 @@ def test_cli_info_text_json_and_errors(tmp_path, capsys):
     assert "bad.off" in err and "Traceback" not in err
 
 
-def test_every_error_is_a_geoshape_error():
-    from geoshape import errors
-
-    for name in errors.__all__:
-        assert issubclass(getattr(errors, name), GeoshapeError)
-
-
 # ---------------------------------------------------------------- real data
 
 
+@pytest.mark.slow
 @pytest.mark.data
 @pytest.mark.parametrize("dataset", ["tosca_r5k", "tosca_hires", "scape"])
 def test_info_over_real_sets_reports_manifest_defects(dataset):

@@ -14,8 +14,9 @@ from geoshape.metrics.correspondence import (
     GeodesicErrorEvaluator,
     cumulative_error_curve,
     geodesic_errors,
-    plot_error_curves,
 )
+from geoshape.plot.correspondence import plot_error_curves
+from geoshape.plot.retrieval import plot_precision_recall
 
 
 def line_matrix(x):
@@ -116,7 +117,7 @@ def test_bad_retrieval_input():
 
 def test_plot_precision_recall(tmp_path):
     m = M.retrieval_metrics(line_matrix(TOY_X), TOY_LABELS)
-    out = M.plot_precision_recall({"toy": m, "flat": ([0, 1], [0.5, 0.5])}, tmp_path / "pr.png")
+    out = plot_precision_recall({"toy": m, "flat": ([0, 1], [0.5, 0.5])}, tmp_path / "pr.png")
     assert out.read_bytes()[:4] == b"\x89PNG"
     assert [p.name for p in tmp_path.iterdir()] == ["pr.png"]  # no temporary left behind
 

@@ -75,13 +75,13 @@ def mesh_samples(V, F, n_samples: int, prefixes=()) -> dict:
     from scipy.sparse.csgraph import dijkstra
 
     from geoshape.geometry.graph import structural_graph
+    from geoshape.geometry.mesh import vertex_areas
     from geoshape.geometry.sampling import geodesic_voronoi_sampling
-    from geoshape.retrieval.descriptors.evd import _vertex_areas
 
     graph = structural_graph(V, F, 1)
     samples, owner, _ = geodesic_voronoi_sampling(graph, n_samples)
     rows = dijkstra(graph, directed=True, indices=samples)
-    vertex_area = _vertex_areas(V, F)
+    vertex_area = vertex_areas(V, F)
     cells = {n_samples: np.bincount(owner, weights=vertex_area, minlength=n_samples)}
     for l in set(prefixes) - {n_samples}:
         if l < n_samples:
@@ -227,8 +227,8 @@ def run(args: argparse.Namespace) -> int:
         mean_average_precision,
         nearest_neighbor,
     )
+    from geoshape.parallel import single_thread_blas
     from geoshape.retrieval.descriptors.evd import EVD_N_SAMPLES, evd_distance_matrix
-    from geoshape.retrieval.meshes import single_thread_blas
     from geoshape.spectral.laplacian import laplacian_basis
 
     folder = dataset_dir("tosca_r5k", required=True) if args.dir is None else args.dir

@@ -101,8 +101,8 @@ def _evd_hires(n: int) -> dict:
 
     from geoshape.io.datasets import dataset_dir
     from geoshape.io.mesh_io import load_mesh
+    from geoshape.parallel import single_thread_blas
     from geoshape.retrieval.descriptors.evd import evd_descriptor
-    from geoshape.retrieval.meshes import single_thread_blas
 
     folder = dataset_dir("tosca_hires", required=False)
     if folder is None or n < 1:
@@ -133,7 +133,7 @@ def run(args) -> int:
 
     from geoshape.bench.results import default_results_path, update_results_section
     from geoshape.io.datasets import dataset_dir
-    from geoshape.metrics.retrieval import plot_precision_recall
+    from geoshape.plot.retrieval import plot_precision_recall
     from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RERANKERS
     from geoshape.retrieval.meshes import retrieval3d_on_folder
 

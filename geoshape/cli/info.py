@@ -33,8 +33,8 @@ def _text(path: str, rep: dict, problems: list[str]) -> str:
 def run(args: argparse.Namespace) -> int:
     from geoshape.cli._common import print_json
     from geoshape.errors import GeoshapeError
+    from geoshape.geometry.report import mesh_report, report_problems
     from geoshape.io.mesh_io import load_mesh
-    from geoshape.io.report import mesh_report, report_problems
 
     results, failed = [], 0
     for path in args.meshes:

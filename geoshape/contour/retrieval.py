@@ -22,6 +22,7 @@ from geoshape.contour.methods import (
     method_spec,
     pair_costs,
 )
+from geoshape.parallel import single_thread_blas
 
 __all__ = ["shape_distance_matrix", "contour_signatures", "load_contours"]
 
@@ -43,22 +44,10 @@ def contour_signatures(contours, method: str = DEFAULT_METHOD, *, backend: str |
                    n_jobs=n_jobs, progress=False)
 
 
-def _single_threaded_blas():
-    """Limit BLAS to one thread: the work is already spread over processes, and small
-    matrix products with several BLAS threads on busy cores spin and run ~10x slower."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional; without it BLAS keeps its own thread count
-        import contextlib
-
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def _block_costs(sigs_a, sigs_b, spec):
     out = np.empty((len(sigs_a), len(sigs_b)))
     batch = 256
-    with _single_threaded_blas():
+    with single_thread_blas():  # small products: several BLAS threads on busy cores spin
         for r, sig in enumerate(sigs_a):
             for c in range(0, len(sigs_b), batch):
                 out[r, c:c + batch] = pair_costs(sig, list(sigs_b[c:c + batch]), spec)
@@ -130,7 +119,7 @@ def load_contours(paths, n_points: int = 100) -> list[np.ndarray]:
 
     Raises :class:`geoshape.errors.InvalidImageError` (missing, unreadable, empty image…).
     """
-    from geoshape.io.silhouette import contour_from_image
+    from geoshape.geometry.contour import contour_from_image
 
     return [contour_from_image(Path(p), n_points) for p in paths]
 

@@ -25,6 +25,10 @@ import numpy as np
 
 from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.sampling import euclidean_farthest_point_sampling
+
+#: the old name of the Euclidean farthest-point sampler, still importable from here
+embedding_samples = euclidean_farthest_point_sampling
 
 REORDER_METHODS = ("exhaustive", "greedy", "pairwise", "signs", "none")
 
@@ -40,32 +44,6 @@ class Alignment:
     def apply(self, B: np.ndarray) -> np.ndarray:
         """``B[:, perm] * signs`` — mesh 2's embedding aligned to mesh 1's columns."""
         return B[:, list(self.perm)] * np.asarray(self.signs, dtype=float)
-
-
-def embedding_samples(X: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
-    """Farthest-point samples of the rows of ``X`` (in embedding space), O(n_rows · n).
-
-    Distances are invariant to permuting and sign-flipping the columns, so every signed
-    eigenvector order of one embedding gets the same samples.
-    """
-    X = np.asarray(X, dtype=np.float64)
-    m = len(X)
-    if n >= m:
-        return np.arange(m)
-    rng = np.random.default_rng(seed)
-
-    def sq_dist(j):
-        diff = X - X[j]
-        return np.einsum("ij,ij->i", diff, diff)
-
-    # start from an extremity (the farthest row from a random one): less seed dependence
-    chosen = [int(sq_dist(int(rng.integers(m))).argmax())]
-    d = sq_dist(chosen[0])
-    for _ in range(n - 1):
-        j = int(d.argmax())
-        chosen.append(j)
-        np.minimum(d, sq_dist(j), out=d)
-    return np.asarray(chosen)
 
 
 def best_match_cost(A: np.ndarray, B: np.ndarray) -> float:
@@ -188,8 +166,8 @@ def align_embeddings(A, B, method: str = "exhaustive", *, n_keep: int = 2,
     k = A.shape[1]
     if method == "exhaustive" and k > 7:
         raise InvalidOptionError(f"exhaustive reordering of k = {k} columns is intractable; use 'greedy'")
-    A_s = A[embedding_samples(A, max_points, seed)]
-    B_s = B[embedding_samples(B, max_points, seed)]
+    A_s = A[euclidean_farthest_point_sampling(A, max_points, seed)]
+    B_s = B[euclidean_farthest_point_sampling(B, max_points, seed)]
     if method == "none":
         return [Alignment(tuple(range(k)), (1,) * k, best_match_cost(A_s, B_s))]
     if method == "exhaustive":

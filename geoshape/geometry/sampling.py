@@ -1,9 +1,12 @@
-"""Farthest-point ("max-min") sampling of mesh vertices in geodesic distance (thesis App. B).
+"""Farthest-point ("max-min") sampling, in geodesic distance on a mesh (thesis App. B) or in
+Euclidean distance between points.
 
 Each new sample is the vertex whose geodesic distance to the nearest chosen sample is
 largest. The first sample is found by a few farthest-point jumps from a seeded random
 vertex, which places it near an extremity of the shape. The distance rows computed on the
 way are returned, so the Nyström embedding gets its ``l x n`` block for free.
+:func:`euclidean_farthest_point_sampling` does the same for the rows of any point array
+(e.g. a spectral embedding) with straight-line distances.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import numpy as np
 
 from geoshape.errors import InvalidOptionError
 
-__all__ = ["farthest_point_sampling", "geodesic_voronoi_sampling"]
+__all__ = ["farthest_point_sampling", "geodesic_voronoi_sampling", "euclidean_farthest_point_sampling"]
 
 
 def farthest_point_sampling(V, F, n_samples: int, *, method: str = "graph", p: int = 1,
@@ -153,3 +156,49 @@ def geodesic_voronoi_sampling(graph, n_samples: int, *, seed: int = 0, n_jumps: 
             score[samples[: i + 1]] = -1.0
             nxt = int(np.argmax(score))
     return samples, owner, distance
+
+
+def euclidean_farthest_point_sampling(X, n_samples: int, seed: int = 0) -> np.ndarray:
+    """Max-min samples of the rows of ``X`` in Euclidean distance.
+
+    The first sample is the row farthest from a seeded random row (an extremity: less seed
+    dependence); each next one is the row farthest from all chosen ones. Distances are
+    invariant to permuting and sign-flipping the columns, so every signed eigenvector
+    order of one spectral embedding gets the same samples.
+
+    Parameters
+    ----------
+    X : (m, k) array_like of float
+    n_samples : int
+        Number of samples; ``n_samples >= m`` returns every row.
+    seed : int
+
+    Returns
+    -------
+    samples : (min(n_samples, m),) int64
+        Row indices in the order chosen (``arange(m)`` when every row is taken).
+
+    Notes
+    -----
+    O(m · n_samples · k) time, O(m) memory.
+
+    >>> euclidean_farthest_point_sampling([[0.0], [1.0], [5.0], [2.0]], 2).tolist()
+    [2, 0]
+    """
+    X = np.asarray(X, dtype=np.float64)
+    m = len(X)
+    if n_samples >= m:
+        return np.arange(m)
+    rng = np.random.default_rng(seed)
+
+    def sq_dist(j):
+        diff = X - X[j]
+        return np.einsum("ij,ij->i", diff, diff)
+
+    chosen = [int(sq_dist(int(rng.integers(m))).argmax())]
+    d = sq_dist(chosen[0])
+    for _ in range(n_samples - 1):
+        j = int(d.argmax())
+        chosen.append(j)
+        np.minimum(d, sq_dist(j), out=d)
+    return np.asarray(chosen)

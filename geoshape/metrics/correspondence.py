@@ -15,12 +15,13 @@ surface for every error below ``exact_below`` (see :class:`GeodesicErrorEvaluato
 from __future__ import annotations
 
 import logging
-import os
 
 import numpy as np
 
 from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.geodesics import GeodesicSolver
+from geoshape.geometry.mesh import face_areas
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -30,7 +31,6 @@ __all__ = [
     "GeodesicErrorEvaluator",
     "geodesic_errors",
     "cumulative_error_curve",
-    "plot_error_curves",
 ]
 
 log = logging.getLogger(__name__)
@@ -97,9 +97,10 @@ class GeodesicErrorEvaluator:
         if not exact_below >= 0:
             raise InvalidOptionError(f"exact_below must be >= 0; got {exact_below!r}")
         self.exact_below = float(exact_below)
-        e = self.V[self.F] - self.V[np.roll(self.F, 1, axis=1)]  # (m, 3, 3) edge vectors
+        rolled = np.roll(self.F, 1, axis=1)
+        e = self.V[self.F] - self.V[rolled]  # (m, 3, 3) edge vectors
         self._face_h = np.linalg.norm(e, axis=2).max(axis=1)
-        area = 0.5 * np.linalg.norm(np.cross(e[:, 0], -e[:, 2]), axis=1).sum()
+        area = face_areas(self.V, rolled).sum()  # corners in the order of e: the same bits
         if not area > 0:
             raise InvalidOptionError(f"{name}: surface area is zero")
         #: √(surface area), the normalisation of every error.
@@ -129,16 +130,9 @@ class GeodesicErrorEvaluator:
         return self._dijkstra(s, t)
 
     def _dijkstra(self, s: int, t: int) -> float:
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import dijkstra
-
-        if self._graph is None:
-            E = np.concatenate([self.F[:, [0, 1]], self.F[:, [1, 2]], self.F[:, [2, 0]]])
-            E = np.unique(np.sort(E, axis=1), axis=0)  # each undirected edge once
-            w = np.linalg.norm(self.V[E[:, 0]] - self.V[E[:, 1]], axis=1)
-            n = len(self.V)
-            self._graph = coo_matrix((w, (E[:, 0], E[:, 1])), shape=(n, n)).tocsr()
-        return float(dijkstra(self._graph, directed=False, indices=int(s))[int(t)])
+        if self._graph is None:  # the mesh graph as given: nothing bridges components
+            self._graph = GeodesicSolver(self.V, self.F, "graph", raw=True)
+        return float(self._graph.distances([int(s)])[0, int(t)])
 
     def _patch_exact(self, s: int, t: int, bound: float) -> float:
         import igl
@@ -162,11 +156,9 @@ class GeodesicErrorEvaluator:
         return min(value, bound)
 
     def _heat_from(self, s: int) -> np.ndarray:
-        if self._heat is None:
-            import potpourri3d as pp3d
-
-            self._heat = pp3d.MeshHeatMethodDistanceSolver(self.V, self.F)
-        return np.asarray(self._heat.compute_distance(int(s)))
+        if self._heat is None:  # potpourri3d on the whole mesh, values not clipped
+            self._heat = GeodesicSolver(self.V, self.F, "heat", raw=True)
+        return self._heat.distances([int(s)])[0]
 
     # -- public ------------------------------------------------------------------------
     def distances(self, src, dst) -> np.ndarray:
@@ -407,48 +399,3 @@ def geodesic_errors(
             symmetric_chosen=chosen,
         )
     return out
-
-
-def plot_error_curves(curves: dict, path: str | os.PathLike, *, title: str | None = None,
-                      thresholds=None, sym_aware: bool = False):
-    """Draw the cumulative geodesic-error curves of several methods on one plot.
-
-    Parameters
-    ----------
-    curves : dict
-        ``{method name: errors}`` with ``errors`` a (k,) array (several pairs may be
-        concatenated), or ``{name: geodesic_errors(...) result}``.
-    path : str or PathLike
-        Output image, written atomically; format from the extension.
-    title : str or None
-    thresholds : (T,) array_like or None
-        Default 0 … 0.25.
-    sym_aware : bool
-        Plot the symmetry-aware errors of result dicts instead of the direct ones.
-
-    Returns
-    -------
-    pathlib.Path
-    """
-
-    from matplotlib.figure import Figure
-
-    from geoshape.io.atomic import save_figure_atomic
-
-    fig = Figure(figsize=(5, 4))
-    ax = fig.add_subplot(1, 1, 1)
-    for name, value in curves.items():
-        if isinstance(value, dict):
-            value = value["errors_sym_aware" if sym_aware else "errors"]
-        th, frac = cumulative_error_curve(value, thresholds)
-        mean = float(np.mean(value)) if np.size(value) else float("nan")
-        ax.plot(th, 100 * frac, label=f"{name} (mean {mean:.3f})")
-    ax.set_xlabel("geodesic error / sqrt(area)")
-    ax.set_ylabel("% correspondences")
-    ax.set_ylim(0, 101)
-    ax.grid(alpha=0.3)
-    if title:
-        ax.set_title(title)
-    if curves:
-        ax.legend(loc="lower right")
-    return save_figure_atomic(fig, path, dpi=120)

@@ -16,7 +16,6 @@ All functions cost ``O(N^2 log N)`` time (one sort per row) and ``O(N^2)`` memor
 
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
@@ -36,7 +35,6 @@ __all__ = [
     "mean_average_precision",
     "precision_recall_curve",
     "retrieval_metrics",
-    "plot_precision_recall",
 ]
 
 
@@ -341,44 +339,3 @@ def retrieval_metrics(D, labels, max_rank: int = 10, e_depth: int = 32) -> dict:
         "pr_recall": [float(x) for x in levels],
         "pr_precision": [float(x) for x in _pr_curve(rel, n_rel, levels)],
     }
-
-
-def plot_precision_recall(curves: dict, path: str | os.PathLike, title: str | None = None):
-    """Draw several precision–recall curves on one plot and write it atomically.
-
-    Parameters
-    ----------
-    curves : dict
-        ``{method name: (recall, precision)}`` or ``{name: retrieval_metrics(...) dict}``.
-    path : str or PathLike
-        Output image; the format follows the extension (``.png``, ``.pdf``, ``.svg``).
-    title : str or None
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-    """
-
-    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
-
-    from geoshape.io.atomic import save_figure_atomic
-
-    fig = Figure(figsize=(5, 4))
-    ax = fig.add_subplot(1, 1, 1)
-    for name, curve in curves.items():
-        if isinstance(curve, dict):
-            r, p = curve["pr_recall"], curve["pr_precision"]
-        else:
-            r, p = curve
-        ax.plot(r, p, marker="o", ms=3, label=str(name))
-    ax.set_xlabel("recall")
-    ax.set_ylabel("precision")
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1.02)
-    ax.grid(alpha=0.3)
-    if title:
-        ax.set_title(title)
-    if curves:
-        ax.legend(loc="lower left")
-    return save_figure_atomic(fig, path, dpi=120)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import face_normals
 from geoshape.io.validate import check_mesh
 
 __all__ = ["draw_mesh", "render_mesh_png"]
@@ -22,8 +23,7 @@ def draw_mesh(ax, V: np.ndarray, F: np.ndarray, facecolors: np.ndarray, *, elev:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     tris = V[F]
-    nrm = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    nrm = face_normals(V, F)
     e, a = np.radians(elev), np.radians(azim)
     view = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
     shade = 0.35 + 0.65 * np.abs(nrm @ view)

@@ -1,4 +1,4 @@
-"""Headless pictures of 3D retrieval: similarity-matrix image and query result strips.
+"""Headless pictures of retrieval: similarity-matrix image, query result strips, precision–recall.
 
 Everything draws on a matplotlib ``Figure`` (Agg, no pyplot, no display) and is written
 atomically. Meshes are drawn by our own orthographic projection with flat Lambert shading
@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 
+from geoshape.geometry.mesh import face_normals
 from geoshape.io.validate import check_mesh
 
 __all__ = ["plot_similarity_matrix", "draw_mesh", "plot_query_strip"]
@@ -73,9 +74,7 @@ def draw_mesh(ax, V, F, *, color=(0.72, 0.74, 0.8)) -> None:
     P = X[:, :2]
     depth = X[F, 2].mean(axis=1)
     order = np.argsort(depth)  # far first (viewer on +z)
-    T = X[F]
-    nrm = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    nrm = face_normals(X, F)
     shade = 0.3 + 0.7 * np.abs(nrm[:, 2])
     colors = np.clip(np.asarray(color)[None, :] * shade[:, None], 0, 1)
     ax.add_collection(PolyCollection(P[F][order], facecolors=colors[order], edgecolors="none"))
@@ -119,3 +118,44 @@ def plot_query_strip(query, results, path: str | os.PathLike, *, query_title: st
             ax.set_title(titles[k - 1], fontsize=6, color=col)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.85, wspace=0.05)
     _save(fig, path)
+
+
+def plot_precision_recall(curves: dict, path: str | os.PathLike, title: str | None = None):
+    """Draw several precision–recall curves on one plot and write it atomically.
+
+    Parameters
+    ----------
+    curves : dict
+        ``{method name: (recall, precision)}`` or ``{name: retrieval_metrics(...) dict}``.
+    path : str or PathLike
+        Output image; the format follows the extension (``.png``, ``.pdf``, ``.svg``).
+    title : str or None
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
+
+    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
+
+    from geoshape.io.atomic import save_figure_atomic
+
+    fig = Figure(figsize=(5, 4))
+    ax = fig.add_subplot(1, 1, 1)
+    for name, curve in curves.items():
+        if isinstance(curve, dict):
+            r, p = curve["pr_recall"], curve["pr_precision"]
+        else:
+            r, p = curve
+        ax.plot(r, p, marker="o", ms=3, label=str(name))
+    ax.set_xlabel("recall")
+    ax.set_ylabel("precision")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    if title:
+        ax.set_title(title)
+    if curves:
+        ax.legend(loc="lower left")
+    return save_figure_atomic(fig, path, dpi=120)

@@ -112,8 +112,8 @@ def run_experiment(out_dir, *, generated=GENERATED, generated_vertices: int = GE
         REORDER_METHODS,
         align_embeddings,
         best_match_cost,
-        embedding_samples,
     )
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling as fps
 
     for m in methods:
         check_choice("reordering method", m, REORDER_METHODS)
@@ -157,7 +157,7 @@ def run_experiment(out_dir, *, generated=GENERATED, generated_vertices: int = GE
             found[method] = (res, time.perf_counter() - t)
         ref = found["exhaustive"][0]
         truth_keys = [(tuple(int(x) for x in p), tuple(int(x) for x in s)) for p, s in truths]
-        A_s, B_s = A[embedding_samples(A, 200, seed)], B[embedding_samples(B, 200, seed)]
+        A_s, B_s = A[fps(A, 200, seed)], B[fps(B, 200, seed)]
         truth_cost = min(best_match_cost(A_s, B_s[:, list(p)] * np.asarray(s, float)) for p, s in truth_keys)
         truth_top2 = any(key in truth_keys for key in [(a.perm, a.signs) for a in ref[:2]])
         for method in methods:

@@ -96,13 +96,13 @@ def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, d
     """
     import igl
 
-    from geoshape.correspondence.orientation import _face_normals, outward_sign
+    from geoshape.correspondence.orientation import outward_sign
+    from geoshape.geometry.mesh import face_areas, face_normals
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    normals = _face_normals(V, F) * outward_sign(V, F)
-    face_area = 0.5 * np.linalg.norm(normals, axis=1)
-    normals /= np.maximum(2.0 * face_area, 1e-300)[:, None]
+    normals = face_normals(V, F) * outward_sign(V, F)
+    face_area = face_areas(V, F)
     scale = np.sqrt(basis.mass.sum() / max(float(face_area.sum()), 1e-300))
     face_area *= scale * scale  # areas and gradients of the basis' unit-area mesh
     G = igl.grad(V * scale, F)  # (3m, n): x, y, z blocks

@@ -41,8 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoshape._options import check_choice
+from geoshape.distances import chi2_distances
 from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
+from geoshape.parallel import single_thread_blas
 
 __all__ = [
     "DescriptorSpec",
@@ -226,11 +228,11 @@ def ccd_descriptor(V, F, *, affinity: str = DEFAULT_AFFINITY, n_points: int = CC
     -----
     Embedding cost (see :func:`embedding_mesh`) plus O(n · n_points) for the sampling.
     """
-    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
     from geoshape.spectral.embedding import spectral_embedding
 
     X = spectral_embedding(V, F, k=k, affinity=affinity, seed=seed).coords
-    return np.ascontiguousarray(X[embedding_samples(X, n_points, seed)])
+    return np.ascontiguousarray(X[euclidean_farthest_point_sampling(X, n_points, seed)])
 
 
 def ccd_distance(A, B, *, reorder: str = CCD_REORDER) -> float:
@@ -435,8 +437,6 @@ def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: in
     >>> compute_descriptor(m.vertices, m.faces, "d2").shape
     (64,)
     """
-    from geoshape.retrieval.meshes import single_thread_blas
-
     params = descriptor_params(name, affinity, seed)
     if check:
         V, F = check_mesh(V, F, allow_no_faces=True)
@@ -460,18 +460,6 @@ def _compute(V, F, name: str, params: dict, seed: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 # Distances
 # ---------------------------------------------------------------------------------------
-
-
-def _chi2_block(X, Y):
-    X = np.abs(X)
-    Y = np.abs(Y)
-    out = np.zeros((len(X), len(Y)))
-    for i in range(len(X)):  # row by row: O(M d) memory
-        s = X[i] + Y
-        diff = (X[i] - Y) ** 2
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out[i] = 0.5 * np.where(s > 0, diff / np.where(s > 0, s, 1.0), 0.0).sum(axis=1)
-    return out
 
 
 def descriptor_distances(name: str, queries, database) -> np.ndarray:
@@ -511,7 +499,7 @@ def descriptor_distances(name: str, queries, database) -> np.ndarray:
     if X.shape[1] != Y.shape[1]:
         raise InvalidOptionError(f"descriptor lengths differ: {X.shape[1]} vs {Y.shape[1]}")
     if metric == "chi2":
-        return _chi2_block(X, Y)
+        return chi2_distances(X, Y)
     if metric == "l1":
         return np.abs(X[:, None, :] - Y[None, :, :]).sum(axis=2) if len(X) * len(Y) * X.shape[1] < 5e7 \
             else np.array([np.abs(x - Y).sum(axis=1) for x in X])
@@ -546,15 +534,11 @@ def descriptor_distance_matrix(name: str, descriptors, *, backend: str | None = 
 
 
 def _ccd_block(list_a, list_b):
-    from geoshape.retrieval.meshes import single_thread_blas
-
     with single_thread_blas():
         return descriptor_distances("ccd", list_a, list_b)
 
 
 def _ccd_pairs_task(args):
-    from geoshape.retrieval.meshes import single_thread_blas
-
     pairs, descs = args
     with single_thread_blas():
         return [ccd_distance(descs[i], descs[j]) for i, j in pairs]

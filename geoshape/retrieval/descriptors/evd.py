@@ -34,7 +34,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoshape.distances import chi2_distance, chi2_distances
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import vertex_areas
 from geoshape.io.validate import check_mesh
 
 __all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "EVD_CONFIG_NAMES", "evd_descriptor",
@@ -54,12 +56,6 @@ EVD_CONFIG_NAMES = (*EVD_CONFIGS, "heat")
 AREA_SIGMA = 0.1
 #: rows of the quadrature configuration stop at this many widths
 CUTOFF_SIGMAS = 6.0
-
-
-def _vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Lumped (barycentric) vertex areas, (n,)."""
-    a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    return np.bincount(F.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(V))
 
 
 def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD_N_EIGENVALUES,
@@ -134,7 +130,7 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
             "for a point cloud use config='heat' or config='thesis'"
         )
     if needs_area:
-        vertex_area = _vertex_areas(V, F)
+        vertex_area = vertex_areas(V, F)
         area = float(vertex_area.sum())
         if not area > 0:
             raise InvalidOptionError("the mesh has zero surface area; no EVD can be computed")
@@ -247,26 +243,11 @@ def _sample_block(V, F, n_samples, affinity, sigma, width, vertex_area, geodesic
     return np.exp(-(D**2) / (2.0 * width * width)), w
 
 
-def chi2_distance(a, b) -> float:
-    """``0.5 * sum((a - b)^2 / (a + b))`` over entries where ``a + b > 0``.
-
-    >>> chi2_distance([1.0, 0.0], [3.0, 0.0])
-    0.5
-    """
-    a = np.abs(np.asarray(a, dtype=np.float64))
-    b = np.abs(np.asarray(b, dtype=np.float64))
-    if a.shape != b.shape:
-        raise InvalidOptionError(f"descriptors differ in shape: {a.shape} vs {b.shape}")
-    s = a + b
-    ok = s > 0
-    return float(0.5 * np.sum((a[ok] - b[ok]) ** 2 / s[ok]))
-
-
 def evd_distance_matrix(descriptors) -> np.ndarray:
-    """All-pairs chi-square distances of ``(N, d)`` descriptors, an ``(N, N)`` matrix."""
-    X = np.abs(np.asarray(descriptors, dtype=np.float64))
-    diff = X[:, None, :] - X[None, :, :]
-    s = X[:, None, :] + X[None, :, :]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        term = np.where(s > 0, diff**2 / np.where(s > 0, s, 1.0), 0.0)
-    return 0.5 * term.sum(axis=2)
+    """All-pairs chi-square distances of ``(N, d)`` descriptors, an ``(N, N)`` matrix.
+
+    :func:`geoshape.distances.chi2_distances` on absolute values; ``chi2_distance`` (one
+    pair) is :func:`geoshape.distances.chi2_distance`, importable from here too.
+    """
+    X = np.asarray(descriptors, dtype=np.float64)
+    return chi2_distances(X, X)

@@ -28,6 +28,7 @@ import functools
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import face_areas
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -291,9 +292,8 @@ def lfd_descriptor(V, F, *, n_fields: int = LFD_FIELDS, resolution: int = LFD_RE
     if n_fields < 1 or resolution < 8:
         raise InvalidOptionError(f"lfd needs n_fields >= 1 and resolution >= 8; got {n_fields}, {resolution}")
     if len(F):
-        T = V[F]
-        area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
-        centre = (area[:, None] * T.mean(axis=1)).sum(0) / area.sum() if area.sum() > 0 else V.mean(0)
+        area = face_areas(V, F)
+        centre = (area[:, None] * V[F].mean(axis=1)).sum(0) / area.sum() if area.sum() > 0 else V.mean(0)
     else:
         centre = V.mean(axis=0)
     X = V - centre

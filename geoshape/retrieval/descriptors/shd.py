@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import face_areas
 from geoshape.io.validate import check_mesh
 
 __all__ = ["surface_samples", "normalize_surface", "shd_descriptor", "SHD_SHELLS", "SHD_LMAX"]
@@ -53,12 +54,15 @@ def surface_samples(V, F, n_points: int, seed: int = 0) -> np.ndarray:
     -----
     Time O(m + n_points log m).
     """
+    # Not trimesh.sample.sample_surface: that draws the same kind of points but consumes the
+    # generator in another order (faces from an unnormalised cumulative sum, then interleaved
+    # (u, v) pairs), so one seed gives other points (0.27 apart on a unit icosphere) and other
+    # SHD values, and the numbers in docs/RESULTS.md depend on these exact samples.
     rng = np.random.default_rng(seed)
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     if len(F):
-        T = V[F]  # (m, 3, 3)
-        area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+        area = face_areas(V, F)
         total = area.sum()
     else:
         total = 0.0
@@ -69,7 +73,7 @@ def surface_samples(V, F, n_points: int, seed: int = 0) -> np.ndarray:
     u, v = rng.random(n_points), rng.random(n_points)
     flip = u + v > 1
     u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    T = T[tri]
+    T = V[F[tri]]  # (n_points, 3, 3)
     return T[:, 0] + u[:, None] * (T[:, 1] - T[:, 0]) + v[:, None] * (T[:, 2] - T[:, 0])
 
 

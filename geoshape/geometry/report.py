@@ -11,38 +11,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from geoshape.geometry.mesh import face_areas, unique_edges, vertex_components
 from geoshape.io.validate import check_mesh
-
-
-def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(m,) triangle areas."""
-    e1 = V[F[:, 1]] - V[F[:, 0]]
-    e2 = V[F[:, 2]] - V[F[:, 0]]
-    return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
-
-
-def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected edges of a triangle list and how many faces use each.
-
-    Returns
-    -------
-    edges : (e, 2) int64, sorted pairs ``i < j``
-    face_count : (e,) int64
-    """
-    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    E = E[E[:, 0] != E[:, 1]]
-    edges, counts = np.unique(E, axis=0, return_counts=True)
-    return edges, counts
-
-
-def vertex_components(n: int, F: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of the vertices joined by face edges.
-
-    Unreferenced vertices form singleton components. Returns ``(count, labels (n,))``.
-    """
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]]) if len(F) else np.zeros((0, 2), np.int64)
-    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
-    return connected_components(A, directed=False)
 
 
 def nonmanifold_vertices(n: int, F: np.ndarray) -> np.ndarray:
@@ -105,7 +75,7 @@ def mesh_report(V, F, *, name: str = "mesh", area_eps: float = 1e-12) -> dict:
     n_comp, labels = vertex_components(n, F)
     n_comp_referenced = len(np.unique(labels[referenced])) if m else 0
     if m:
-        edges, counts = unique_edges(F)
+        edges, counts = unique_edges(F, n, return_counts=True)
         areas = face_areas(V, F)
         repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
         degenerate = int(np.count_nonzero(repeated | (areas <= area_eps * max(diag, 1e-300) ** 2)))
