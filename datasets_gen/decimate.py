@@ -87,10 +87,10 @@ def _recover_ids(V: np.ndarray, Vd: np.ndarray, carried: np.ndarray) -> np.ndarr
     ok[ok] = np.all(V[ids[ok]] == Vd[ok], axis=1)
     if not ok.all():
         # a survivor moved onto its partner's position: look the position up exactly
-        from scipy.spatial import cKDTree
+        from geoshape.geometry.knn import kd_tree
 
         bad = np.flatnonzero(~ok)
-        tree = cKDTree(V)
+        tree = kd_tree(V)
         hits = tree.query_ball_point(Vd[bad], r=0.0)
         for i, h in zip(bad, hits, strict=True):
             exact = [j for j in h if np.array_equal(V[j], Vd[i])]

@@ -88,11 +88,10 @@ def _landmark_sets(pair, n_vertices_1, n_vertices_2, n_landmarks, seed, feature_
 
 
 def run(args: argparse.Namespace) -> int:
-    try:  # one BLAS thread: on shared cores threaded BLAS is many times slower; same for every method
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl ships with scipy's stack
-        return _run(args)
-    with threadpool_limits(1):
+    from geoshape.parallel import blas_threads
+
+    # one BLAS thread: on shared cores threaded BLAS is many times slower; same for every method
+    with blas_threads(1, openmp=True):
         return _run(args)
 
 
@@ -104,7 +103,8 @@ def _run(args: argparse.Namespace) -> int:
     from geoshape.errors import GeoshapeError
     from geoshape.io.datasets import read_pairs
     from geoshape.io.mesh_io import load_mesh
-    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors, plot_error_curves
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
+    from geoshape.plot.correspondence import plot_error_curves
 
     folder = Path(args.dir)
     methods = [m for m in args.methods.split(",") if m]

@@ -26,6 +26,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("correspondence", "geoshape.bench.correspondence"),
     ("retrieval3d", "geoshape.bench.retrieval3d"),
     ("evd", "geoshape.bench.evd"),
+    ("knn", "geoshape.bench.knn"),
     ("reliability", "geoshape.bench.reliability"),
 ]
 

@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from geoshape.correspondence.nn import k_nearest
+from geoshape.geometry.knn import k_nearest
 
 
 def _scale(A: np.ndarray) -> float:

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.correspondence.nn import nearest
-from geoshape.correspondence.reorder import embedding_samples
 from geoshape.correspondence.tps import fit_tps
+from geoshape.geometry.knn import nearest, nearest_searcher
+from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
 
 def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0) -> float:
@@ -27,19 +27,6 @@ def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0
     a = A[rng.choice(len(A), min(n, len(A)), replace=False)]
     b = B[rng.choice(len(B), min(n, len(B)), replace=False)]
     return float(cdist(a, b).mean())
-
-
-def nearest_searcher(points: np.ndarray):
-    """``f(queries) -> (q,) indices`` of the nearest rows of ``points``; the index is built once."""
-    from geoshape.correspondence.nn import KD_TREE_MAX_DIM
-    from geoshape.geometry.knn import KNNIndex
-
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    if points.shape[1] <= KD_TREE_MAX_DIM:
-        index = KNNIndex(points)
-        return lambda queries: np.asarray(index.query(np.ascontiguousarray(queries, dtype=np.float64),
-                                                      k=1)[1], dtype=np.int64)
-    return lambda queries: nearest(points, queries)[1]
 
 
 def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | None = None,
@@ -61,7 +48,10 @@ def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | N
     """
     A = np.asarray(A, dtype=np.float64)
     B = np.asarray(B, dtype=np.float64)
-    ctrl = embedding_samples(B, n_controls, seed) if controls is None else np.asarray(controls)
+    if controls is None:
+        ctrl = euclidean_farthest_point_sampling(B, n_controls, seed)
+    else:
+        ctrl = np.asarray(controls)
     lam = mean_pair_distance(A, B, seed=seed) if lam is None else float(lam)
     nearest_in_A = nearest_searcher(A)
     B_ctrl = B[ctrl]

@@ -42,10 +42,10 @@ import numpy as np
 from geoshape._options import check_choice
 from geoshape.correspondence.anchors import anchored_match, proximity_anchors
 from geoshape.correspondence.icp import nonrigid_icp, rigid_icp
-from geoshape.correspondence.nn import nearest
 from geoshape.correspondence.orientation import orientation_score
 from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
 from geoshape.errors import InvalidMeshError, InvalidOptionError
+from geoshape.geometry.knn import nearest
 from geoshape.io.validate import check_mesh
 
 log = logging.getLogger(__name__)
@@ -60,7 +60,6 @@ CORRESPONDENCE_METHODS = (
 )
 DEFAULT_METHOD = "geoshape"
 MIN_VERTICES = 10
-_DEBUG_KEEP_MAPS = False
 
 
 @dataclass
@@ -145,10 +144,10 @@ class PreparedMesh:
 
     def samples(self, n: int, seed: int = 0):
         """``n`` farthest-point samples in Euclidean space (O(n_vertices · n)), cached."""
-        from geoshape.correspondence.reorder import embedding_samples
+        from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
         n = min(n, self.n)
-        return self.cached(("samples", n, seed), lambda: embedding_samples(self.V, n, seed))
+        return self.cached(("samples", n, seed), lambda: euclidean_farthest_point_sampling(self.V, n, seed))
 
     def geodesic_row(self, v: int) -> np.ndarray:
         return self.solver("graph").distances([v])[0]
@@ -174,7 +173,7 @@ def bijective_assignment(A: np.ndarray, B: np.ndarray, *, n_candidates: int = 16
     from scipy.optimize import linear_sum_assignment
     from scipy.sparse.csgraph import min_weight_full_bipartite_matching
 
-    from geoshape.correspondence.nn import k_nearest
+    from geoshape.geometry.knn import k_nearest
 
     if len(A) != len(B):
         raise InvalidOptionError(f"bijective matching needs equal vertex counts, got {len(A)} and {len(B)}")
@@ -240,11 +239,12 @@ def _sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
     """
     import itertools
 
-    from geoshape.correspondence.reorder import best_match_cost, embedding_samples
+    from geoshape.correspondence.reorder import best_match_cost
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
     best = alignments[0]
     seen = {(a.perm, a.signs) for a in alignments}
-    A_s, B_s = A[embedding_samples(A, 200)], B[embedding_samples(B, 200)]
+    A_s, B_s = A[euclidean_farthest_point_sampling(A, 200)], B[euclidean_farthest_point_sampling(B, 200)]
     out = []
     for signs in itertools.product((1, -1), repeat=len(best.signs)):
         if (best.perm, signs) not in seen:
@@ -284,7 +284,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     settings = {name: value for name, value in locals().items() if name not in ("m1", "m2")}
     from geoshape.correspondence.fmaps.zoomout import full_resolution_map, functional_map_from_p2p, zoomout
     from geoshape.correspondence.orientation import outward_vertex_normals, patch_orientation_score
-    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
     timings = {}
     A, B, alignments = _spectral_candidates(m1, m2, k=k, scaling="sqrt", reorder=reorder, n_keep=n_keep,
@@ -317,7 +317,7 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     candidates = []
     # the controls of B do not depend on the signed order (FPS distances are invariant);
     # on large meshes they are matched against the refinement samples of A only
-    controls = embedding_samples(B, n_controls, seed)
+    controls = euclidean_farthest_point_sampling(B, n_controls, seed)
     A_targets = A[s1] if large else A
     for a in alignments:
         warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=icp_iterations, controls=controls, seed=seed,
@@ -448,9 +448,6 @@ def _geoshape(m1, m2, *, k=5, reorder="exhaustive", n_keep=8, n_refine=5, icp_it
     alts += [dict(source="descriptors", refined_energy=r[3]["refined_energy"],
                   refined_orientation=r[3]["refined_orientation"])
              for r in refined if r[3].get("source") == "descriptors"]
-    if _DEBUG_KEEP_MAPS:
-        for a, c in zip(alts, ranked, strict=True):
-            a["p2p"] = c["p2p"]
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, energy, "geoshape", chosen.get("alignment"), alts, timings, details)
 
@@ -533,11 +530,9 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         check_choice("reordering method", options["reorder"], REORDER_METHODS)
     m1 = _prepared(V1, F1, "source mesh")
     m2 = _prepared(V2, F2, "target mesh")
-    if blas_threads is None:
-        return _dispatch(m1, m2, method, options)
-    from threadpoolctl import threadpool_limits
+    from geoshape import parallel
 
-    with threadpool_limits(blas_threads):
+    with parallel.blas_threads(blas_threads, openmp=True):
         return _dispatch(m1, m2, method, options)
 
 

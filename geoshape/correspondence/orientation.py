@@ -14,10 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
-
-
-def _face_normals(V, F):
-    return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+from geoshape.geometry.mesh import face_areas, face_normals
 
 
 def outward_sign(V, F) -> float:
@@ -29,7 +26,7 @@ def outward_sign(V, F) -> float:
 def vertex_normals(V, F) -> np.ndarray:
     """(n, 3) area-weighted unit vertex normals."""
     N = np.zeros_like(V)
-    fn = _face_normals(V, F)
+    fn = face_normals(V, F, unit=False)
     for c in range(3):
         np.add.at(N, F[:, c], fn)
     return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
@@ -64,11 +61,11 @@ def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, ra
     O(m1 + m2) for the normals, then O(s K) with ``s`` centres and ``K <= max_neighbors``
     KD-tree neighbours each, all vectorised.
     """
-    from scipy.spatial import cKDTree
+    from geoshape.geometry.knn import k_nearest
 
     p2p = np.asarray(p2p_12, dtype=np.int64)
     rng = np.random.default_rng(seed)
-    area1 = 0.5 * np.linalg.norm(_face_normals(V1, F1), axis=1).sum()
+    area1 = face_areas(V1, F1).sum()
     r = radius * np.sqrt(area1)
     N1, N2 = normals if normals is not None else (outward_vertex_normals(V1, F1),
                                                    outward_vertex_normals(V2, F2))
@@ -83,7 +80,7 @@ def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, ra
     K = int(min(len(V1), max_neighbors, 1.5 * expected + 8))
     if K < 3:
         return 0.0
-    dist, nbrs = cKDTree(V1).query(V1[centers], k=K)
+    dist, nbrs = k_nearest(V1, V1[centers], K)
     in_ring = (dist >= r) & (dist <= 2 * r)
     has_two = in_ring.sum(axis=1) >= 2
     centers, dist, nbrs, in_ring = centers[has_two], dist[has_two], nbrs[has_two], in_ring[has_two]
@@ -118,7 +115,7 @@ def orientation_score(V1, F1, V2, F2, p2p_12) -> float:
     if not keep.any():
         return 0.0
     G = G[keep]
-    mapped = _face_normals(V2, G) * outward_sign(V1, F1)
+    mapped = face_normals(V2, G, unit=False) * outward_sign(V1, F1)
     N2 = vertex_normals(V2, F2) * outward_sign(V2, F2)
     ref = N2[G].sum(axis=1)
     return float(np.mean(np.sign(np.einsum("ij,ij->i", mapped, ref))))

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.correspondence.nn import nearest
-from geoshape.correspondence.reorder import embedding_samples
+from geoshape.geometry.knn import nearest
+from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
 
 def principal_frame(X: np.ndarray) -> np.ndarray:
@@ -36,7 +36,7 @@ def shape_context_3d(X: np.ndarray, *, n_ref: int = 300, n_r: int = 5, n_azimuth
                      n_elevation: int = 6, seed: int = 0) -> np.ndarray:
     """(n, n_r · n_azimuth · n_elevation) L1-normalised histograms for the points ``X``."""
     Y = principal_frame(np.asarray(X, dtype=np.float64))
-    ref = Y[embedding_samples(Y, n_ref, seed)]
+    ref = Y[euclidean_farthest_point_sampling(Y, n_ref, seed)]
     D = Y[:, None, :] - ref[None, :, :]  # (n, r, 3)
     r = np.linalg.norm(D, axis=2)
     mean_r = r.mean()

@@ -9,7 +9,7 @@ Backends (``GEODESIC_METHODS``):
     meshes, see ``docs/RESULTS.md``. Fastest; the default.
 ``"heat"``
     The heat method (Crane et al. 2013): potpourri3d's ``MeshHeatMethodDistanceSolver``
-    (robust intrinsic Laplacian), or libigl's heat geodesics when potpourri3d is absent.
+    (robust intrinsic Laplacian).
     One factorisation per mesh, then one linear solve per source.
 ``"exact"``
     libigl's exact polyhedral geodesics (MMP). No precomputation, O(n^2) per source
@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoshape._options import check_choice
-from geoshape.errors import InvalidOptionError, MissingDependencyError, ResourceLimitError
+from geoshape.errors import InvalidOptionError, ResourceLimitError
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -90,60 +90,28 @@ def check_all_pairs_memory(n: int, *, what: str = "all-pairs geodesic distances"
         )
 
 
-def _heat_backend() -> str:
-    try:
-        import potpourri3d  # noqa: F401
-
-        return "potpourri3d"
-    except ImportError:
-        pass
-    try:
-        import igl  # noqa: F401
-
-        return "igl"
-    except ImportError:
-        raise MissingDependencyError(
-            "the 'heat' geodesic backend needs potpourri3d or libigl (pip install potpourri3d)"
-        ) from None
-
-
 class _SurfaceSolver:
     """Single-source surface distances on one connected triangle mesh (heat or exact)."""
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, method: str, t_coef: float):
-        self.V, self.F, self.method = V, F, method
+    def __init__(self, V: np.ndarray, F: np.ndarray, method: str, t_coef: float, clip: bool = True):
+        self.V, self.F, self.method, self.clip = V, F, method, clip
         self.n = len(V)
         if method == "heat":
-            self.backend = _heat_backend()
-            if self.backend == "potpourri3d":
-                import potpourri3d as pp3d
+            import potpourri3d as pp3d
 
-                self._solver = pp3d.MeshHeatMethodDistanceSolver(V, F, t_coef=t_coef)
-            else:
-                import igl
-
-                self._solver = igl.HeatGeodesicsData()
-                edge = np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1).mean()
-                igl.heat_geodesics_precompute(V, F, float(t_coef * edge**2), self._solver)
+            self.backend = "potpourri3d"
+            self._solver = pp3d.MeshHeatMethodDistanceSolver(V, F, t_coef=t_coef)
         else:
-            try:
-                import igl  # noqa: F401
-            except ImportError:
-                raise MissingDependencyError(
-                    "the 'exact' geodesic backend needs libigl (pip install libigl)"
-                ) from None
             self.backend = "igl"
 
     def row(self, s: int) -> np.ndarray:
         if self.method == "heat":
-            if self.backend == "potpourri3d":
-                d = np.asarray(self._solver.compute_distance(int(s)), dtype=np.float64)
-            else:
-                import igl
-
-                d = igl.heat_geodesics_solve(self._solver, np.array([s], dtype=np.int64))
-            d = np.maximum(d, 0.0)
-            d[s] = 0.0
+            d = np.asarray(self._solver.compute_distance(int(s)), dtype=np.float64)
+            if len(d) < self.n:  # trailing vertices in no face (raw mode): unreachable
+                d = np.concatenate([d, np.full(self.n - len(d), np.inf)])
+            if self.clip:
+                d = np.maximum(d, 0.0)
+                d[s] = 0.0
             return d
         import igl
 
@@ -173,6 +141,12 @@ class GeodesicSolver:
         Above this many bridging-edge endpoints, ``heat``/``exact`` fall back to ``graph``.
     t_coef : float
         Heat method time step, as a multiple of the mean edge length squared.
+    raw : bool
+        ``True``: the backend's own distances on the mesh exactly as given, for scoring
+        against ground truth — nothing bridges components (``graph`` is the mesh graph,
+        zero-length edges kept at 0, infinite between components; ``heat``/``exact`` run
+        one solver on the whole mesh, whatever it gives across components) and heat
+        values are not clipped at 0. ``p`` and ``max_portals`` are then unused.
 
     Attributes
     ----------
@@ -198,25 +172,26 @@ class GeodesicSolver:
     """
 
     def __init__(self, V, F, method: str = DEFAULT_GEODESIC_METHOD, *, p: int = 1,
-                 max_portals: int = 256, t_coef: float = 1.0):
+                 max_portals: int = 256, t_coef: float = 1.0, raw: bool = False):
         check_choice("geodesic method", method, GEODESIC_METHODS)
         V, F = check_mesh(V, F, allow_no_faces=True, min_vertices=1)
-        from geoshape.geometry.graph import bridging_edges, mesh_components, structural_graph
+        from geoshape.geometry.graph import bridging_edges, structural_graph
+        from geoshape.geometry.mesh import edge_graph, vertex_components
 
-        self.V, self.F, self.n, self.p = V, F, len(V), p
+        self.V, self.F, self.n, self.p, self.raw = V, F, len(V), p, raw
         self.requested_method = method
         self.method = method
         self.graph: sp.csr_matrix | None = None
         if method == "graph":
-            self.graph = structural_graph(V, F, p)
+            self.graph = edge_graph(V, F, raw_lengths=True) if raw else structural_graph(V, F, p)
             return
         if len(F) == 0:
             self._fallback("the mesh has no faces")
             return
-        n_comp, labels = mesh_components(self.n, F)
+        n_comp, labels = (1, None) if raw else vertex_components(self.n, F)
         self.labels = labels
         if n_comp == 1:
-            self._parts = {0: (np.arange(self.n), _SurfaceSolver(V, F, method, t_coef))}
+            self._parts = {0: (np.arange(self.n), _SurfaceSolver(V, F, method, t_coef, clip=not raw))}
             self._portals = np.zeros(0, dtype=np.int64)
             return
         B = bridging_edges(V, F, p)
@@ -243,7 +218,12 @@ class GeodesicSolver:
             stacklevel=3,
         )
         self.method = "graph"
-        self.graph = structural_graph(self.V, self.F, self.p)
+        if self.raw:
+            from geoshape.geometry.mesh import edge_graph
+
+            self.graph = edge_graph(self.V, self.F, raw_lengths=True)
+        else:
+            self.graph = structural_graph(self.V, self.F, self.p)
 
     def _part(self, c: int):
         if c not in self._parts:

@@ -25,6 +25,14 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import (
+    ZERO_LENGTH_EPS,
+    edge_graph,
+    edges_graph,
+    undirected_edges,
+    unique_edges,
+    vertex_components,
+)
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -37,116 +45,32 @@ __all__ = [
     "structural_graph",
 ]
 
-ZERO_LENGTH_EPS = 1e-12
 _KNN_CANDIDATES = 10
 
-
-def mesh_edges(F: np.ndarray, n: int | None = None) -> np.ndarray:
-    """Unique undirected edges of a triangle list.
-
-    Parameters
-    ----------
-    F : (m, 3) int
-        Triangles.
-    n : int, optional
-        Number of vertices (default ``F.max() + 1``).
-
-    Returns
-    -------
-    E : (e, 2) int64
-        Edges with ``E[:, 0] < E[:, 1]``, sorted lexicographically; degenerate faces
-        that repeat a vertex contribute no self-loop.
-    """
-    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    if F.shape[0] == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    return _unique_edges(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), n)
-
-
-def _unique_edges(E: np.ndarray, n: int | None = None) -> np.ndarray:
-    """Sorted unique undirected edges without self-loops (1-D keys: much faster than axis=0)."""
-    if len(E) == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    n = int(E.max()) + 1 if n is None else int(n)
-    lo = np.minimum(E[:, 0], E[:, 1])
-    hi = np.maximum(E[:, 0], E[:, 1])
-    key = np.unique((lo * n + hi)[lo != hi])
-    return np.column_stack([key // n, key % n])
-
-
-def _length_eps(V: np.ndarray) -> float:
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if len(V) else 0.0
-    return ZERO_LENGTH_EPS * (diag if diag > 0 else 1.0)
-
-
-def _graph_from_edges(V: np.ndarray, E: np.ndarray) -> sp.csr_matrix:
-    n = V.shape[0]
-    if E.shape[0] == 0:
-        return sp.csr_matrix((n, n), dtype=np.float64)
-    w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
-    w = np.maximum(w, _length_eps(V))
-    rows = np.concatenate([E[:, 0], E[:, 1]])
-    cols = np.concatenate([E[:, 1], E[:, 0]])
-    # E holds unique pairs i < j, so no entry is summed twice
-    return sp.coo_matrix((np.concatenate([w, w]), (rows, cols)), shape=(n, n)).tocsr()
-
-
-def edge_graph(V, F) -> sp.csr_matrix:
-    """The mesh graph: one edge per triangle side, weighted by its length.
-
-    Parameters
-    ----------
-    V : (n, 3) float
-    F : (m, 3) int (may be empty: a graph with no edges)
-
-    Returns
-    -------
-    G : (n, n) csr_matrix, symmetric, float64
-
-    Examples
-    --------
-    >>> G = edge_graph([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
-    >>> G.nnz
-    6
-    """
-    V, F = check_mesh(V, F, allow_no_faces=True, min_vertices=1)
-    return _graph_from_edges(V, mesh_edges(F))
-
-
-def mesh_components(n: int, F) -> tuple[int, np.ndarray]:
-    """Connected components of the mesh graph (vertices in no face are singletons).
-
-    Returns
-    -------
-    n_components : int
-    labels : (n,) int32
-    """
-    E = mesh_edges(F, n)
-    A = sp.coo_matrix(
-        (np.ones(len(E), dtype=np.int8), (E[:, 0], E[:, 1])), shape=(n, n)
-    ).tocsr()
-    return connected_components(A, directed=False)
+# The mesh graph's primitives live in geometry/mesh.py; the old names stay importable here.
+mesh_edges = unique_edges
+mesh_components = vertex_components
 
 
 def _knn_candidates(V: np.ndarray, k: int) -> np.ndarray:
-    from scipy.spatial import cKDTree
+    from geoshape.geometry.knn import k_nearest
 
     n = len(V)
     k = min(k, n - 1)
     if k < 1:
         return np.zeros((0, 2), dtype=np.int64)
-    _, idx = cKDTree(V).query(V, k=k + 1)
+    _, idx = k_nearest(V, V, k + 1)
     rows = np.repeat(np.arange(n), k)
     cols = idx[:, 1:].ravel()
     ok = cols < n
-    return _unique_edges(np.column_stack([rows[ok], cols[ok]]), n)
+    return undirected_edges(np.column_stack([rows[ok], cols[ok]]), n)
 
 
 def _nearest_outside(V: np.ndarray, members: np.ndarray, others: np.ndarray):
     """Closest pair (i in members, j in others) by brute force over a KD-tree."""
-    from scipy.spatial import cKDTree
+    from geoshape.geometry.knn import KNNIndex
 
-    d, j = cKDTree(V[others]).query(V[members], k=1)
+    d, j = KNNIndex(V[others]).query(V[members], k=1)
     a = int(np.argmin(d))
     return int(members[a]), int(others[j[a]]), float(d[a])
 
@@ -184,7 +108,7 @@ def _join_components(V: np.ndarray, labels: np.ndarray) -> np.ndarray:
 def _mst_edges(V: np.ndarray, E: np.ndarray) -> np.ndarray:
     """Minimum spanning forest of candidate edges ``E``, completed into a spanning tree."""
     n = len(V)
-    G = _graph_from_edges(V, E)
+    G = edges_graph(V, E)
     T = minimum_spanning_tree(G).tocoo()
     tree = np.sort(np.column_stack([T.row, T.col]), axis=1).astype(np.int64)
     n_comp, labels = connected_components(T, directed=False)
@@ -231,7 +155,7 @@ def emst_edges(V, p: int = 1, *, k: int = _KNN_CANDIDATES) -> np.ndarray:
             keyc = cand[:, 0] * len(V) + cand[:, 1]
             keyt = T[:, 0] * len(V) + T[:, 1]
             cand = cand[~np.isin(keyc, keyt)]
-    return _unique_edges(np.concatenate(trees), len(V))
+    return undirected_edges(np.concatenate(trees), len(V))
 
 
 def bridging_edges(V, F, p: int = 1) -> np.ndarray:
@@ -258,7 +182,7 @@ def bridging_edges(V, F, p: int = 1) -> np.ndarray:
     V, F = check_mesh(V, F, allow_no_faces=True, min_vertices=1)
     if p < 0:
         raise InvalidOptionError(f"p (number of spanning trees) must be >= 0, got {p}")
-    n_comp, labels = mesh_components(len(V), F)
+    n_comp, labels = vertex_components(len(V), F)
     if n_comp <= 1:
         return np.zeros((0, 2), dtype=np.int64)
     if p == 0:
@@ -304,8 +228,8 @@ def structural_graph(V, F, p: int = 1) -> sp.csr_matrix:
     O(n + m) for a connected mesh; O(p n k log n) time and O(n k) memory otherwise.
     """
     V, F = check_mesh(V, F, allow_no_faces=True, min_vertices=1)
-    E = mesh_edges(F, len(V))
+    E = unique_edges(F, len(V))
     B = bridging_edges(V, F, p)
     if len(B):
-        E = _unique_edges(np.concatenate([E, B]), len(V))
-    return _graph_from_edges(V, E)
+        E = undirected_edges(np.concatenate([E, B]), len(V))
+    return edges_graph(V, E)

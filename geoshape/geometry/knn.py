@@ -1,21 +1,45 @@
-"""Nearest-neighbour search behind a small backend registry.
+"""Nearest neighbours: the one home of geoshape's k-NN queries.
 
-``scipy`` (``cKDTree``, always available, vectorised over queries, any dimension) and
-``open3d`` (``KDTreeFlann``, when the ``open3d`` extra is installed; points as columns,
-shape (dim, n), any dimension; queried one point at a time). ``"auto"`` picks the first
-available in :data:`BACKENDS` order. Both give the same neighbours (ties aside).
+- :func:`nearest` — the nearest row of ``points`` for each query, in any dimension;
+- :func:`k_nearest` — the ``k`` nearest rows, sorted by distance;
+- :func:`nearest_searcher` — :func:`nearest` with the index built once, for repeated queries;
+- :class:`KNNIndex` — a KD-tree index, queried many times;
+- :func:`kd_tree` — the SciPy KD-tree itself, for tree-specific operations
+  (``query_ball_point``, …).
+
+Low dimensions (``d <=`` :data:`KD_TREE_MAX_DIM`) use a KD-tree. In higher dimensions,
+where KD-trees degrade to brute force anyway, :func:`nearest` uses blocked BLAS distance
+computations: ``|y|² - 2 x·y`` in blocks of queries, O(q n d) time, O(block n) memory. The
+block products run in single precision (twice the BLAS speed, half the memory traffic; the
+nearest point changes only between near-ties); the returned distances are recomputed in
+double precision. :func:`k_nearest` uses the KD-tree in every dimension.
+
+Backends of the KD-tree (:data:`BACKENDS`): ``scipy`` (``cKDTree``, always available, any
+dimension) and ``open3d`` (``open3d.core.nns.NearestNeighborSearch``, when the ``open3d``
+extra is installed; all queries in one batched call, multi-threaded). Both find the same
+neighbours except between exactly equidistant points, where the two libraries break ties
+differently. ``"auto"`` is always ``scipy``: Open3D is faster only in some cases and by at
+most about 20 % (``geoshape bench knn``, docs/RESULTS.md), and choosing it by size would
+make maps depend on whether an optional extra is installed and change how ties resolve.
 
 Cost: build O(n log n); k-NN query O(q (k + log n)) expected in low dimension.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError, MissingDependencyError
 
+__all__ = ["BACKENDS", "KD_TREE_MAX_DIM", "KNNIndex", "available_backends", "kd_tree", "nearest",
+           "k_nearest", "nearest_searcher"]
+
 BACKENDS = ("scipy", "open3d")
+#: above this dimension :func:`nearest` uses blocked BLAS products instead of a KD-tree
+KD_TREE_MAX_DIM = 8
 
 
 def available_backends() -> list[str]:
@@ -30,6 +54,13 @@ def available_backends() -> list[str]:
     return out
 
 
+def kd_tree(points):
+    """SciPy's ``cKDTree`` over ``points (n, d)``, for operations beyond k-NN queries."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(np.asarray(points, dtype=np.float64))
+
+
 class KNNIndex:
     """A k-nearest-neighbour index over ``points`` (n, d).
 
@@ -37,6 +68,7 @@ class KNNIndex:
     ----------
     points : (n, d) array_like of float
     backend : {"auto", "scipy", "open3d"}
+        ``"auto"`` is ``"scipy"`` (see the module documentation).
 
     Examples
     --------
@@ -50,11 +82,9 @@ class KNNIndex:
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         if self.points.ndim != 2 or len(self.points) == 0:
             raise InvalidOptionError(f"points must have shape (n, d) with n >= 1, got {self.points.shape}")
-        self.backend = available_backends()[0] if backend == "auto" else backend
+        self.backend = "scipy" if backend == "auto" else backend
         if self.backend == "scipy":
-            from scipy.spatial import cKDTree
-
-            self._tree = cKDTree(self.points)
+            self._tree = kd_tree(self.points)
         else:
             try:
                 import open3d as o3d
@@ -62,12 +92,14 @@ class KNNIndex:
                 raise MissingDependencyError(
                     "the 'open3d' nearest-neighbour backend needs open3d: pip install 'geoshape[open3d]'"
                 ) from exc
-            self._tree = o3d.geometry.KDTreeFlann(np.asfortranarray(self.points.T))
+            self._tree = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor.from_numpy(self.points))
+            self._tree.knn_index()
 
     def query(self, queries, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Distances and indices of the ``k`` nearest points to each query.
 
-        Returns ``(dist, idx)``, each of shape (q,) when ``k == 1``, else (q, k).
+        Returns ``(dist, idx)``, each of shape (q,) when ``k == 1``, else (q, k), sorted by
+        distance along each row.
         """
         Q = np.ascontiguousarray(queries, dtype=np.float64)
         if Q.ndim != 2 or Q.shape[1] != self.points.shape[1]:
@@ -80,16 +112,71 @@ class KNNIndex:
         if self.backend == "scipy":
             dist, idx = self._tree.query(Q, k=k)
             return np.asarray(dist), np.asarray(idx, dtype=np.int64)
-        dist = np.empty((len(Q), k))
-        idx = np.empty((len(Q), k), np.int64)
-        for i, q in enumerate(Q):
-            _, ii, d2 = self._tree.search_knn_vector_xd(q, k)
-            idx[i], dist[i] = np.asarray(ii), np.sqrt(np.asarray(d2))
+        import open3d as o3d
+
+        idx, d2 = self._tree.knn_search(o3d.core.Tensor.from_numpy(Q), k)
+        idx = idx.numpy().astype(np.int64, copy=False).reshape(len(Q), k)
+        dist = np.sqrt(d2.numpy().astype(np.float64, copy=False)).reshape(len(Q), k)
         if k == 1:
             return dist[:, 0], idx[:, 0]
         return dist, idx
 
 
-def nearest_neighbors(points, queries, k: int = 1, backend: str = "auto"):
-    """One-shot k-NN: ``KNNIndex(points, backend).query(queries, k)``."""
-    return KNNIndex(points, backend).query(queries, k)
+def nearest(points: np.ndarray, queries: np.ndarray, *, backend: str = "auto",
+            block: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+    """For each query row, the nearest row of ``points``.
+
+    Parameters
+    ----------
+    points : (n, d) float
+    queries : (q, d) float
+    backend : KD-tree backend (``d <= KD_TREE_MAX_DIM``), see :class:`KNNIndex`
+    block : queries per BLAS block (``d > KD_TREE_MAX_DIM``)
+
+    Returns
+    -------
+    dist : (q,) float64, Euclidean distance to the nearest point
+    idx : (q,) int64
+
+    Examples
+    --------
+    >>> nearest(np.eye(3), np.array([[0.0, 0.2, 0.9]]))[1]
+    array([2])
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    queries = np.ascontiguousarray(queries, dtype=np.float64)
+    if points.shape[1] <= KD_TREE_MAX_DIM:
+        return KNNIndex(points, backend).query(queries, k=1)
+    points32 = points.astype(np.float32)
+    sq_p = np.einsum("ij,ij->i", points32, points32)
+    idx = np.empty(len(queries), np.int64)
+    for s in range(0, len(queries), block):
+        d2 = queries[s : s + block].astype(np.float32) @ points32.T
+        d2 *= -2.0
+        d2 += sq_p[None, :]
+        idx[s : s + block] = d2.argmin(axis=1)
+    dist = np.linalg.norm(queries - points[idx], axis=1)
+    return dist, idx
+
+
+def k_nearest(points: np.ndarray, queries: np.ndarray, k: int, *, backend: str = "auto"):
+    """The ``min(k, n)`` nearest rows of ``points`` for each query, nearest first.
+
+    Returns ``(dist (q, k), idx (q, k))`` (2D even for ``k == 1``). KD-tree in any dimension.
+    """
+    k = min(int(k), len(points))
+    d, i = KNNIndex(points, backend).query(queries, k=k)
+    return d.reshape(len(queries), k), i.reshape(len(queries), k)
+
+
+def nearest_searcher(points: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``f(queries) -> (q,) int64`` indices of the nearest rows of ``points``, as :func:`nearest`.
+
+    The KD-tree (``d <= KD_TREE_MAX_DIM``) is built once, for many calls.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.shape[1] <= KD_TREE_MAX_DIM:
+        index = KNNIndex(points)
+        return lambda queries: np.asarray(index.query(np.ascontiguousarray(queries, dtype=np.float64),
+                                                      k=1)[1], dtype=np.int64)
+    return lambda queries: nearest(points, queries)[1]

@@ -15,30 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from geoshape.errors import GeoshapeError, InvalidMeshError
+from geoshape.parallel import single_thread_blas  # importable from here too (one BLAS thread)
 
 __all__ = ["describe_file", "compute_descriptors", "retrieval3d_matrix",
            "retrieval3d_on_folder", "DEFAULT_RERANK_K", "single_thread_blas"]
 
 #: shortlist size of EVD → CCD re-ranking
 DEFAULT_RERANK_K = 20
-
-
-def single_thread_blas():
-    """Context limiting BLAS to one thread.
-
-    Inside a parallel task the work is already spread over processes; and the small dense
-    eigenproblems of the descriptors run many times slower with several BLAS threads on
-    busy cores (measured: 15 s instead of 0.3 s for one CCD of an 800-vertex mesh).
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional; without it BLAS keeps its own thread count
-        import contextlib
-
-        return contextlib.nullcontext()
-    import scipy.linalg  # noqa: F401  (threadpoolctl only limits BLAS libraries already loaded)
-
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def describe_file(item) -> tuple[np.ndarray, float]:

@@ -60,17 +60,17 @@ def mirror_positions(V: np.ndarray, vts: np.ndarray, sym: np.ndarray) -> np.ndar
     A vertex takes the mirror of its nearest landmark (the landmarks cover about 75 % of
     a tosca_r5k mesh's vertices, so the gap is at most an edge or two). O(n log n).
     """
-    from scipy.spatial import cKDTree
+    from geoshape.geometry.knn import nearest
 
-    _, k = cKDTree(V[vts]).query(V)
+    _, k = nearest(V[vts], V)
     return V[sym[k]]
 
 
 def snap(V: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Nearest vertex of ``V`` to each point of ``P`` (``(p,)`` int64), O((n + p) log n)."""
-    from scipy.spatial import cKDTree
+    from geoshape.geometry.knn import nearest
 
-    return np.asarray(cKDTree(V).query(P)[1], dtype=np.int64)
+    return nearest(V, P)[1]
 
 
 def reduce_mesh(V, F, n_vertices: int | None):
@@ -237,7 +237,7 @@ def one_blas_thread(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from geoshape.retrieval.meshes import single_thread_blas
+        from geoshape.parallel import single_thread_blas
 
         with single_thread_blas():
             return fn(*args, **kwargs)

@@ -8,7 +8,8 @@ geoshape's own, written from the paper's description.
 Conventions: ``p2p_12[i]`` is the vertex of mesh 2 matched to vertex ``i`` of mesh 1;
 ``C_21 (k, k)`` maps coefficients of functions on mesh 2 to functions on mesh 1
 (pull-back through ``p2p_12``): ``C_21 = Φ1ᵀ M1 Φ2[p2p_12]``. The point map is recovered
-by matching the rows of ``Φ1 C_21`` (mesh 1, aligned) to the rows of ``Φ2``.
+by matching the rows of ``Φ1`` to the rows of ``Φ2 C_21ᵀ`` (mesh 2 carried into mesh 1's
+basis), nearest neighbours by :func:`geoshape.geometry.knn.nearest`.
 
 For speed the iterations run on farthest-point subsets of both meshes (a few thousand
 points suffice to estimate a k <= 100 functional map: least squares on the subset); only
@@ -20,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.correspondence.nn import nearest
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.knn import k_nearest, nearest
 from geoshape.spectral.laplacian import LaplacianBasis
 
 
@@ -42,42 +43,31 @@ def functional_map_from_p2p(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_
     return solve_triangular(R[:k1, :k1], Q[:, :k1].T @ basis2.evecs[p2p_12, :k2])
 
 
-#: how a point map is read off a functional map (see :func:`p2p_from_functional_map`)
-RECOVERY = "adjoint"
-
-
 def aligned_bases(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
-                  rows1: np.ndarray | None = None, rows2: np.ndarray | None = None,
-                  recovery: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  rows1: np.ndarray | None = None,
+                  rows2: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(queries, candidates)``: rows of mesh 1 and of mesh 2 expressed in one basis.
 
-    ``"adjoint"`` (default): ``Φ1`` against ``Φ2 C_21ᵀ`` — the target basis is carried
-    into the source basis, as ZoomOut and the original functional-map paper recover maps.
-    ``"pullback"``: ``Φ1 C_21`` against ``Φ2``. Both agree when ``C_21`` is orthonormal;
-    on real pairs (``C`` only near-orthonormal) the adjoint rule was more precise on
-    tosca_r5k (see docs/correspondence3d.md).
+    ``Φ1`` against ``Φ2 C_21ᵀ``: the target basis is carried into the source basis, as
+    ZoomOut and the original functional-map paper recover maps. (Matching ``Φ1 C_21``
+    against ``Φ2`` agrees only when ``C_21`` is orthonormal; on real pairs, where ``C`` is
+    only near-orthonormal, it was less precise on tosca_r5k: see docs/correspondence3d.md.)
     """
-    recovery = RECOVERY if recovery is None else recovery
     k1, k2 = C_21.shape
     E1 = basis1.evecs[:, :k1] if rows1 is None else basis1.evecs[rows1, :k1]
     E2 = basis2.evecs[:, :k2] if rows2 is None else basis2.evecs[rows2, :k2]
-    if recovery == "adjoint":
-        return E1, E2 @ C_21.T
-    if recovery == "pullback":
-        return E1 @ C_21, E2
-    raise InvalidOptionError(f"unknown map recovery {recovery!r}; expected 'adjoint' or 'pullback'")
+    return E1, E2 @ C_21.T
 
 
 def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
-                            rows1: np.ndarray | None = None, rows2: np.ndarray | None = None,
-                            recovery: str | None = None) -> np.ndarray:
+                            rows1: np.ndarray | None = None, rows2: np.ndarray | None = None) -> np.ndarray:
     """Point map 1 → 2 from ``C_21``: nearest neighbours in a shared spectral basis.
 
     ``rows1``/``rows2`` restrict queries and candidates; the result indexes mesh-2
-    vertices (not positions in ``rows2``). ``recovery`` as in :func:`aligned_bases`.
+    vertices (not positions in ``rows2``). The bases are aligned by :func:`aligned_bases`.
     Cost O(s1 s2 k) (blocked BLAS above 8 dimensions).
     """
-    queries, candidates = aligned_bases(basis1, basis2, C_21, rows1, rows2, recovery)
+    queries, candidates = aligned_bases(basis1, basis2, C_21, rows1, rows2)
     _, j = nearest(candidates, queries)
     return j if rows2 is None else np.asarray(rows2)[j]
 
@@ -85,8 +75,7 @@ def p2p_from_functional_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21
 def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, *,
             k_start: int = 8, k_end: int = 60, step: int = 2,
             samples1: np.ndarray | None = None, samples2: np.ndarray | None = None,
-            return_energy: bool = False, final_on_samples: bool = False, V2=None,
-            samples_only: bool = False):
+            return_energy: bool = False, final_on_samples: bool = False, samples_only: bool = False):
     """Refine ``p2p_12`` by spectral upsampling from ``k_start`` to ``k_end``.
 
     Parameters
@@ -97,9 +86,6 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
         Initial map, for every vertex of mesh 1 or for ``samples1`` only.
     samples1, samples2 : int arrays, optional
         Vertex subsets on which the iterations run (e.g. 2000 farthest points each).
-    V2 : (n2, 3) float, optional
-        Positions of mesh 2; with ``samples2``, lets the final full-resolution step of a
-        large mesh search only near each vertex's coarse image (:func:`full_resolution_map`).
     final_on_samples : bool
         Map every vertex of mesh 1 only onto ``samples2`` (a cheap coarse map, e.g. to
         screen candidate initialisations) instead of onto every vertex of mesh 2.
@@ -140,13 +126,7 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     C = functional_map_from_p2p(basis1, basis2, sub, k_end, k_end, rows1, qr)
     if samples_only:
         return (sub, functional_map_energy(C)) if return_energy else sub
-    if final_on_samples or (V2 is not None and rows2 is not None):
-        full = p2p_from_functional_map(basis1, basis2, C, None, rows2)
-        if not final_on_samples:
-            C = functional_map_from_p2p(basis1, basis2, full, k_end, k_end)
-            full = full_resolution_map(basis1, basis2, C, full, np.asarray(V2, dtype=np.float64))
-    else:
-        full = p2p_from_functional_map(basis1, basis2, C)
+    full = p2p_from_functional_map(basis1, basis2, C, None, rows2 if final_on_samples else None)
     if not return_energy:
         return full
     return full, functional_map_energy(C)
@@ -168,19 +148,18 @@ def full_resolution_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np
     """Map every vertex of mesh 1 to every candidate vertex of mesh 2 through ``C_21``.
 
     For target meshes up to :data:`BRUTE_FORCE_MAX` vertices this is the plain nearest
-    neighbour of each row of ``Φ1 C_21`` among all rows of ``Φ2``: O(n1 n2 k). Above, each
+    neighbour of each row of ``Φ1`` among all rows of ``Φ2 C_21ᵀ``
+    (:func:`p2p_from_functional_map`): O(n1 n2 k). Above, each
     vertex ``i`` only considers the ``n_candidates`` vertices of mesh 2 nearest in space
     to its coarse image ``coarse_12[i]`` (e.g. a map onto a few thousand samples): O(n1 c k),
     which turns minutes into a second at 25k vertices. Memory O(block c k).
     """
-    from scipy.spatial import cKDTree
-
     if len(V2) <= BRUTE_FORCE_MAX:
         return p2p_from_functional_map(basis1, basis2, C_21)
     E1, E2 = aligned_bases(basis1, basis2, C_21)
     coarse = np.asarray(coarse_12, dtype=np.int64)
     uniq, inverse = np.unique(coarse, return_inverse=True)
-    _, near = cKDTree(V2).query(V2[uniq], k=min(n_candidates, len(V2)))  # (u, c)
+    _, near = k_nearest(V2, V2[uniq], n_candidates)  # (u, c), c = min(n_candidates, n2)
     out = np.empty(len(E1), np.int64)
     for s in range(0, len(E1), block):
         cand = near[inverse[s : s + block]]  # (b, c)
