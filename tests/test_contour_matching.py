@@ -22,7 +22,7 @@ from geoshape.errors import GeoshapeError, InvalidContourError, InvalidOptionErr
 def silhouette_contour():
     from geoshape_datasets_gen.silhouettes2d import articulated_silhouette
 
-    from geoshape.io.silhouette import extract_contour
+    from geoshape.geometry.contour import extract_contour
 
     return extract_contour(articulated_silhouette("quadruped", seed=3), n_points=80)
 

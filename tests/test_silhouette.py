@@ -7,8 +7,8 @@ import pytest
 from PIL import Image
 
 from geoshape.errors import GeoshapeError, InvalidImageError
-from geoshape.geometry.contour import signed_area
-from geoshape.io.silhouette import contour_from_image, extract_contour, load_silhouette
+from geoshape.geometry.contour import contour_from_image, extract_contour, signed_area
+from geoshape.io.silhouette import load_silhouette
 
 
 def _disk_mask(size=64, r=20, center=(32, 32)):

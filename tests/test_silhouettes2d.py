@@ -9,8 +9,8 @@ import pytest
 from geoshape_datasets_gen.silhouettes2d import CLASSES, articulated_silhouette, generate_silhouettes
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.contour import contour_from_image
 from geoshape.io.datasets import read_labels
-from geoshape.io.silhouette import contour_from_image
 
 
 def _digest(paths):
@@ -47,6 +47,7 @@ def test_unknown_class():
         articulated_silhouette("dragon", seed=0)
 
 
+@pytest.mark.slow
 def test_bent_shapes_retrieve_their_own_class_first(tmp_path):
     """Bending robustness: for every pose, the nearest other shape is a pose of its class."""
     from geoshape.contour.retrieval import retrieval_on_folder

@@ -41,8 +41,8 @@ def run(args) -> int:
     from geoshape.contour.methods import CONTOUR_METHODS, match_contours, method_spec
     from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.errors import InvalidOptionError
+    from geoshape.geometry.contour import contour_from_image
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
-    from geoshape.io.silhouette import contour_from_image
     from geoshape.metrics.retrieval import retrieval_metrics
     from geoshape.plot.contours import plot_contour_matching, plot_distance_matrix
 

@@ -33,8 +33,8 @@ def run(args) -> int:
     import numpy as np
 
     from geoshape.contour.methods import match_contours, method_spec
+    from geoshape.geometry.contour import contour_from_image
     from geoshape.io.atomic import write_text_atomic
-    from geoshape.io.silhouette import contour_from_image
 
     method_spec(args.method, matcher=args.matcher)  # options checked before any work
     P = contour_from_image(args.image_a, args.n_points)

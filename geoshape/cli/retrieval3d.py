@@ -92,7 +92,7 @@ def run(args) -> int:
         write_text_atomic(args.json, json.dumps(to_jsonable(summary), indent=2) + "\n")
     name = args.descriptor + (f" ({args.affinity})" if args.affinity else "")
     if args.plot_pr and m:
-        from geoshape.metrics.retrieval import plot_precision_recall
+        from geoshape.plot.retrieval import plot_precision_recall
 
         plot_precision_recall({name: m}, args.plot_pr, title=f"{name}, {summary['n']} meshes")
     if args.plot_matrix:

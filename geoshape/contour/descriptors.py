@@ -136,7 +136,7 @@ def geodesic_shape_context(P, *, window: int = 4, threshold: str = "hysteresis",
     ----------
     P : (N, 2) array_like
         Closed contour, counter-clockwise, points uniformly spaced by arc length (as given by
-        :func:`geoshape.io.silhouette.extract_contour`).
+        :func:`geoshape.geometry.contour.extract_contour`).
     window : int
         Half-width of the cubic curvature fit.
     threshold : {"hysteresis", "hard", "none"}
