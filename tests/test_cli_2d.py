@@ -76,6 +76,7 @@ def test_bench_lists_2d_benchmarks(capsys):
     assert "kimia99" in out and "tari1000" in out
 
 
+@pytest.mark.slow
 def test_demo_runs(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--per-class", "2", "--method", "gsc"]) == 0
     for name in ("match2d.png", "retrieval_matrix.png", "metrics.md", "metrics.json",

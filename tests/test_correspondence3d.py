@@ -14,7 +14,7 @@ from geoshape.correspondence.mesh_matching import correspond
 from geoshape.correspondence.orientation import orientation_score, patch_orientation_score
 from geoshape.correspondence.reorder import align_embeddings
 from geoshape.correspondence.tps import fit_tps
-from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
+from geoshape.errors import InvalidMeshError, InvalidOptionError
 
 
 @functools.cache
@@ -29,6 +29,7 @@ def exact_share(p2p, truth):
     return float(np.mean(np.asarray(p2p) == np.asarray(truth)))
 
 
+@pytest.mark.slow
 def test_permuted_copy_is_recovered():
     V, _, F = figure()
     rng = np.random.default_rng(7)
@@ -55,6 +56,7 @@ def test_geodesic_distortion_is_zero_for_an_isometry_and_large_for_a_scramble():
     assert scramble > 0.3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["geoshape", "jz"])
 def test_invariance_to_rotation_translation_and_scale(method):
     V, _, F = figure()
@@ -64,11 +66,17 @@ def test_invariance_to_rotation_translation_and_scale(method):
     c = correspond(V, F, V2, F, method=method)
     if method == "geoshape":
         assert exact_share(c.p2p_12, np.arange(len(V))) >= 0.99
-    else:  # the thesis pipeline cannot tell mirror images apart: near-identity or its mirror
-        d = np.linalg.norm(V[c.p2p_12] - V, axis=1)
-        assert np.median(d) < 0.05 * np.ptp(V, axis=0).max() or c.cost >= 0
+    else:  # the thesis pipeline cannot tell mirror images apart: near-identity or its mirror,
+        # both (near-)isometries. Mean normalised geodesic distortion measured: identity 0,
+        # the figure's left-right symmetry 0.03, a random map 0.55.
+        from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
+
+        rows = np.arange(0, len(V), len(V) // 30)
+        (distortion,) = geodesic_distortion(PreparedMesh(V, F), PreparedMesh(V2, F), rows, c.p2p_12[rows])
+        assert distortion < 0.1
 
 
+@pytest.mark.slow
 def test_bent_pose_matches_well():
     V1, V2, F = figure("biped")
     c = correspond(V1, F, V2, F)
@@ -148,6 +156,7 @@ def test_patch_orientation_on_samples_tells_a_map_from_its_mirror():
         patch_orientation_score(V, F, V, F, noisy, rows1=embedding_samples(V, 200))
 
 
+@pytest.mark.slow
 def test_large_mesh_mode_recovers_a_permuted_copy(monkeypatch):
     """Above LARGE_MESH vertices no stage maps every vertex until the last: same answer."""
     import geoshape.correspondence.mesh_matching as mm
@@ -161,6 +170,7 @@ def test_large_mesh_mode_recovers_a_permuted_copy(monkeypatch):
     assert exact_share(c.p2p_12, inv) >= 0.99
 
 
+@pytest.mark.slow
 def test_reflected_copy_gets_the_orientation_preserving_map():
     """Matching a figure to its mirror image: the identity reverses orientation, so the answer
     is the left-right symmetry (each vertex lands where its reflected self is)."""
@@ -187,6 +197,7 @@ def test_bad_input_gives_clear_errors():
         correspond(V, F, V, F, method="jz", frobnicate=3)
 
 
+@pytest.mark.slow
 def test_cli_correspond_writes_the_map_format(tmp_path, capsys):
     from geoshape.__main__ import main
     from geoshape.correspondence.map_io import read_map
@@ -206,6 +217,7 @@ def test_cli_correspond_writes_the_map_format(tmp_path, capsys):
     assert (tmp_path / "c.ply").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_batch_writes_named_maps_and_reports_bad_pairs(tmp_path):
     from geoshape.correspondence.batch import correspond_batch
     from geoshape.io.mesh_io import save_mesh
@@ -232,5 +244,33 @@ def test_batch_writes_named_maps_and_reports_bad_pairs(tmp_path):
     assert len(timings["pairs"]) == 2 and all(r["seconds"] > 0 for r in timings["pairs"])
 
 
-def test_every_error_raised_is_a_geoshape_error():
-    assert issubclass(InvalidMeshError, GeoshapeError) and issubclass(InvalidOptionError, GeoshapeError)
+def test_cli_turns_bad_input_into_a_one_line_error(tmp_path, capsys):
+    """A GeoshapeError from the library ends ``geoshape correspond`` with exit code 2 and a
+    message naming the input; nothing is written."""
+    from geoshape.__main__ import main
+
+    (tmp_path / "tiny.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "nan.off").write_text("OFF\n3 1 0\n0 0 nan\n1 0 0\n0 1 0\n3 0 1 2\n")
+    for bad, match in (("tiny.off", "too few"), ("nan.off", "nan.off")):
+        out = tmp_path / "m.txt"
+        code = main(["correspond", str(tmp_path / bad), str(tmp_path / bad), "-o", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2, err
+        assert match in err and "Traceback" not in err
+        assert not out.exists()
+
+
+def test_batch_refuses_pairs_whose_map_names_collide_before_any_work(tmp_path):
+    from geoshape.correspondence.batch import correspond_batch
+    from geoshape.errors import DatasetError
+    from geoshape.io.mesh_io import save_mesh
+
+    V1, V2, F = figure()
+    for sub in ("a", "b"):
+        (tmp_path / sub).mkdir()
+        save_mesh(tmp_path / sub / "x.off", V1, F)
+        save_mesh(tmp_path / sub / "y.off", V2, F)
+    (tmp_path / "pairs.csv").write_text("source,target\na/x.off,a/y.off\nb/x.off,b/y.off\n")
+    with pytest.raises(DatasetError, match=r"would both write x__y.txt"):
+        correspond_batch(tmp_path, tmp_path / "out", method="rigid-icp", backend="serial", progress=False)
+    assert not any((tmp_path / "out").glob("*.txt"))

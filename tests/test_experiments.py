@@ -38,6 +38,7 @@ def _finite(rows, *columns):
             assert math.isfinite(float(r[c])), (c, r[c])
 
 
+@pytest.mark.slow
 def test_scaling(tmp_path):
     rows, meta = _run(tmp_path, "scaling", "--tosca", "none", "--generated", "snake",
                       "--base-vertices", "150", "--ratios", "0.7,0.4", "--landmarks", "20")
@@ -47,6 +48,7 @@ def test_scaling(tmp_path):
     assert meta["notes"] == []
 
 
+@pytest.mark.slow
 def test_gaussian_width(tmp_path):
     rows, _ = _run(tmp_path, "gaussian-width", "--tosca", "none", "--generated", "snake",
                    "--base-vertices", "120", "--spikes", "5,10", "--rhos", "0.5,2", "--landmarks", "20",
@@ -56,6 +58,7 @@ def test_gaussian_width(tmp_path):
     assert {int(r["spikes"]) for r in rows} == {5, 10}
 
 
+@pytest.mark.slow
 def test_switching(tmp_path):
     rows, _ = _run(tmp_path, "switching", "--tosca", "none", "--generated", "snake",
                    "--base-vertices", "500", "--k", "4")
@@ -66,6 +69,7 @@ def test_switching(tmp_path):
         assert len(r["perm_truth"].split()) == 4
 
 
+@pytest.mark.slow
 def test_reordering(tmp_path):
     rows, _ = _run(tmp_path, "reordering", "--generated", "snake", "--generated-vertices", "500",
                    "--tosca-pairs", "0", "--k", "3")
@@ -75,6 +79,7 @@ def test_reordering(tmp_path):
     assert all(float(r["cost_ratio"]) >= 1 - 1e-9 for r in rows)
 
 
+@pytest.mark.slow
 def test_stretching(tmp_path):
     rows, meta = _run(tmp_path, "stretching", "--tosca", "none", "--generated", "biped",
                       "--base-vertices", "1000", "--landmarks", "50")

@@ -49,6 +49,7 @@ def _cli(*args):
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
     paths = _write_meshes(tmp_path / "meshes", 20)
     db = tmp_path / "idx.db"
@@ -114,6 +115,7 @@ def test_changed_file_is_redescribed(tmp_path):
         assert idx.count() == 2
 
 
+@pytest.mark.slow
 def test_dask_and_processes_give_identical_descriptors(tmp_path):
     pytest.importorskip("distributed")
     _write_meshes(tmp_path / "m", 4)
@@ -131,6 +133,7 @@ def test_dask_and_processes_give_identical_descriptors(tmp_path):
         assert np.array_equal(Xa, Xb)
 
 
+@pytest.mark.slow
 def test_query_finds_itself_and_reranks(tmp_path):
     from geoshape.io.mesh_io import load_mesh
 
@@ -150,22 +153,23 @@ def test_query_finds_itself_and_reranks(tmp_path):
     assert len(out["results"]) == 2 and out["results"][0]["rank"] == 1
 
 
-def test_query_over_10000_rows_is_fast(tmp_path):
+def test_query_over_10000_rows_ranks_by_distance(tmp_path):
+    """Query speed is measured by the benchmarks, not here; this checks the answer."""
     rng = np.random.default_rng(1)
     X = np.sort(rng.random((10000, 20)), axis=1)[:, ::-1]
-    from geoshape.retrieval.descriptors import descriptor_params, params_key
+    from geoshape.retrieval.descriptors import descriptor_distances, descriptor_params, params_key
 
     pk = params_key(descriptor_params("evd"))
     with ShapeIndex(tmp_path / "big.db") as idx:
         idx.insert_rows((f"/synthetic/{k}.off", "evd", pk, "0" * 64, X[k], 0.0)
                         for k in range(len(X)))
-        idx.query_descriptor(X[5], "evd", top=10)  # loads and caches
-        t0 = time.perf_counter()
-        hits = idx.query_descriptor(X[5], "evd", top=10)
-        elapsed = time.perf_counter() - t0
+        first = idx.query_descriptor(X[5], "evd", top=10)  # loads and caches
+        hits = idx.query_descriptor(X[5], "evd", top=10)  # served from the cache: same answer
+    assert [(h.path, h.distance) for h in hits] == [(h.path, h.distance) for h in first]
     assert hits[0].path == "/synthetic/5.off"
     assert len(hits) == 10 and all(a.distance <= b.distance for a, b in zip(hits, hits[1:], strict=False))
-    assert elapsed < 0.5  # measured ~10 ms; generous for a shared machine
+    d = descriptor_distances("evd", [X[5]], X)[0]  # brute force: the 10 nearest rows, in order
+    assert [h.path for h in hits] == [f"/synthetic/{k}.off" for k in np.lexsort((np.arange(len(d)), d))[:10]]
 
 
 def test_missing_index_and_bad_descriptor(tmp_path):

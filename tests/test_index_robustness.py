@@ -66,7 +66,8 @@ def test_two_concurrent_adds_on_a_fresh_database_compute_each_row_once(tmp_path)
     db = tmp_path / "fresh.db"
     cmd = [sys.executable, "-m", "geoshape", "index", "add", str(db), str(tmp_path / "m"),
            "--descriptor", "shd", "--backend", "serial", "--batch-size", "2", "--json"]
-    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1] for o in outs]
     added = [json.loads(o[0])["added"] for o in outs]

@@ -39,6 +39,7 @@ ITEMS = [np.array([0.0, 1.0]), np.array([2.0, -1.0]), np.array([0.5, 0.5]),
 EXPECTED_L1 = np.array([[l1(a, b) for b in ITEMS] for a in ITEMS])
 
 
+# the tests using a LocalCluster (two worker processes, ~5 s in all) are in the slow tier
 @pytest.fixture(scope="module")
 def dask_client():
     distributed = pytest.importorskip("distributed")
@@ -64,6 +65,7 @@ def test_processes_match_serial():
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_dask_matches_serial(dask_client):
     items = list(range(7))
     serial = run_map(seeded_vector, items, backend="serial")
@@ -85,6 +87,7 @@ def test_on_error_return_collects_exception(backend):
     assert "square_or_fail" in out[2].geoshape_traceback
 
 
+@pytest.mark.slow
 def test_on_error_return_dask(dask_client):
     out = run_map(square_or_fail, [3, 2], scheduler=dask_client, on_error="return")
     assert isinstance(out[0], ValueError) and out[1] == 4
@@ -125,6 +128,7 @@ def test_pairwise_symmetric_serial(block_size):
     np.testing.assert_array_equal(Dv, expected)
 
 
+@pytest.mark.slow
 def test_pairwise_asymmetric_backends(dask_client):
     expected = np.array([[ordered_diff(a, b) for b in ITEMS] for a in ITEMS])
     for kw in ({"backend": "serial"}, {"backend": "processes", "n_jobs": 2},

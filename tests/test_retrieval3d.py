@@ -177,6 +177,7 @@ def _cli(*args, cwd=None):
                           capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
+@pytest.mark.slow
 def test_cli_contract(small_collection, tmp_path):
     out, js, pr, mat = (tmp_path / "D.npy", tmp_path / "m.json", tmp_path / "pr.png",
                         tmp_path / "m.png")
@@ -193,6 +194,7 @@ def test_cli_contract(small_collection, tmp_path):
     assert pr.stat().st_size > 0 and mat.stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_cli_bad_mesh_named_and_nothing_written(small_collection, tmp_path):
     import shutil
 

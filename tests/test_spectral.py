@@ -87,8 +87,10 @@ def test_gaussian_affinity_and_sigma_rules():
     assert parse_sigma("2") == 2.0
     with pytest.raises(InvalidOptionError, match="sigma"):
         parse_sigma("widest")
-    with pytest.raises(InvalidOptionError, match="positive"):
-        parse_sigma(-1.0)
+    for too_small in (-1.0, 0.0, 1e-300):
+        with pytest.raises(InvalidOptionError, match="≥ 1e-06"):
+            parse_sigma(too_small)
+    assert parse_sigma(1e-6) == 1e-6
     with pytest.raises(InvalidOptionError, match="zero"):
         resolve_sigma(np.zeros((3, 3)))
 
@@ -156,6 +158,7 @@ def test_folding_a_strip_changes_nothing(geodesics):
     assert np.allclose(a.coords, align_signs(a.coords, b.coords), atol=1e-6 * np.abs(a.coords).max())
 
 
+@pytest.mark.slow
 def test_bending_invariance():
     V0, F = tube(0.0)
     V1, _ = tube(90.0)

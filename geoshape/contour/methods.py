@@ -38,6 +38,7 @@ from geoshape.contour.matching import (
     hungarian_match,
     proximity_match,
 )
+from geoshape.distances import chi2_distances
 from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_contour
 
@@ -199,24 +200,16 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
     return ContourSignature(X, s, Xm)
 
 
-def _chi2(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """½ Σ (a − b)² / (a + b) for all rows of ``A (N, K)`` against ``B (b, M, K)``: (b, N, M)."""
-    A32 = A.astype(np.float32)[:, None, :]
-    out = np.empty((len(B), A.shape[0], B.shape[1]))
-    for t, Bt in enumerate(B.astype(np.float32)):
-        num = (A32 - Bt[None]) ** 2
-        den = A32 + Bt[None]
-        out[t] = 0.5 * (num / np.where(den > 0, den, 1.0)).sum(axis=2)
-    return out
-
-
 def signature_cost_matrices(X1: np.ndarray, X2s: np.ndarray, metric: str) -> np.ndarray:
     """Point cost matrices of one embedding ``X1 (N, K)`` against a stack ``X2s (B, M, K)``.
 
     Returns ``(B, N, M)``. O(B·N·M·K) — a single matrix product for ``sqeuclidean``.
     """
-    if metric == "chi2":
-        return _chi2(X1, X2s)
+    if metric == "chi2":  # histograms: no absolute values; single precision
+        out = np.empty((len(X2s), len(X1), X2s.shape[1]))
+        for t, X2 in enumerate(X2s):
+            out[t] = chi2_distances(X1, X2, absolute=False, dtype=np.float32)
+        return out
     n1 = (X1**2).sum(axis=1)
     n2 = (X2s**2).sum(axis=2)
     G = np.matmul(X2s, np.ascontiguousarray(X1.T)).transpose(0, 2, 1)  # (B, N, M)
@@ -253,7 +246,7 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
     ----------
     P : (N, 2) array_like
         Contour 1: closed, counter-clockwise, points roughly uniform by arc length (as
-        :func:`geoshape.io.silhouette.extract_contour` gives).
+        :func:`geoshape.geometry.contour.extract_contour` gives).
     Q : (M, 2) array_like
         Contour 2, same conventions.
     method : str
@@ -279,7 +272,7 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
     >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
     >>> P = np.c_[np.cos(t) * (1 + 0.3 * np.cos(3 * t)), np.sin(t) * (1 + 0.3 * np.cos(3 * t))]
     >>> p2p, cost = match_contours(P, 2 * np.roll(P, 5, axis=0), method="idsc")
-    >>> int(np.mean(p2p == (np.arange(64) - 5) % 64) > 0.9)
+    >>> int(np.mean(p2p == (np.arange(64) + 5) % 64) > 0.9)  # P[i] is point i + 5 of the rolled copy
     1
     """
     spec = method_spec(method, **options)

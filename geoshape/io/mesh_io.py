@@ -82,7 +82,10 @@ def _fan_triangulate(polys: list[list[int]], where: str) -> np.ndarray:
             raise InvalidMeshError(f"{where}: face {k} has {len(poly)} vertices (need >= 3)")
         for j in range(1, len(poly) - 1):
             tris.append((poly[0], poly[j], poly[j + 1]))
-    return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    try:
+        return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    except OverflowError:  # an index beyond int64: out of range for any mesh
+        raise InvalidMeshError(f"{where}: face index too large (beyond 64-bit integers)") from None
 
 
 def _parse_off(text: str, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -132,8 +135,12 @@ def _parse_off(text: str, where: str) -> tuple[np.ndarray, np.ndarray]:
                     raise InvalidMeshError(f"{where}: face line {' '.join(r)!r} lists fewer than {k} indices")
                 polys.append([int(x) for x in r[1 : k + 1]])
             F = _fan_triangulate(polys, where)
+    except InvalidMeshError:  # already precise (it is a ValueError too)
+        raise
     except ValueError:
         raise InvalidMeshError(f"{where}: malformed face line in OFF") from None
+    except OverflowError:
+        raise InvalidMeshError(f"{where}: face index too large in OFF (beyond 64-bit integers)") from None
     return V, F.reshape(-1, 3)
 
 

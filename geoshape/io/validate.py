@@ -69,7 +69,10 @@ def check_mesh(
             f"{name}: {int(bad.sum())} vertices have NaN or infinite coordinates "
             f"(first: vertex {first} = {V[first].tolist()})"
         )
-    F_in = np.asarray(F)
+    try:
+        F_in = np.asarray(F)
+    except (TypeError, ValueError) as exc:  # e.g. ragged rows
+        raise InvalidMeshError(f"{name}: faces are not an (m, 3) integer array: {exc}") from None
     if F_in.size == 0:
         F_in = F_in.reshape(0, 3)
     if F_in.dtype.kind not in "iu":
@@ -128,13 +131,15 @@ def check_contour(P, *, name: str = "contour", min_points: int = 8) -> np.ndarra
         P = P[:-1]
     if len(P) < min_points:
         raise InvalidContourError(f"{name}: needs at least {min_points} points, got {len(P)}")
-    seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
-    perimeter = float(seg.sum())
+    x, y = P[:, 0], P[:, 1]
+    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: checked just below
+        perimeter = float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
+        area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
     if perimeter <= 0:
         raise InvalidContourError(f"{name}: all points coincide (zero perimeter)")
-    x, y = P[:, 0], P[:, 1]
-    area = 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
-    if abs(area) <= 1e-9 * perimeter**2:
+    if not (np.isfinite(perimeter) and np.isfinite(area)):
+        raise InvalidContourError(f"{name}: coordinates too large (perimeter or area overflows float64)")
+    if abs(area) <= 1e-9 * perimeter * perimeter:
         raise InvalidContourError(
             f"{name}: encloses no area (degenerate: the points lie on a line or fold back)"
         )
