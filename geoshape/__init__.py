@@ -9,17 +9,8 @@ from __future__ import annotations
 
 import importlib
 
-from geoshape.errors import (
-    DatasetError,
-    GeoshapeError,
-    InvalidContourError,
-    InvalidImageError,
-    InvalidMeshError,
-    InvalidOptionError,
-    MissingDependencyError,
-    OutputError,
-    ResourceLimitError,
-)
+from geoshape import errors as _errors
+from geoshape.errors import *  # noqa: F403  (the error classes, listed in errors.__all__)
 
 __version__ = "0.1.0"
 
@@ -35,19 +26,7 @@ _LAZY = {
     "extract_contour": "geoshape.geometry.contour",
 }
 
-__all__ = [
-    "__version__",
-    "GeoshapeError",
-    "InvalidMeshError",
-    "InvalidContourError",
-    "InvalidImageError",
-    "DatasetError",
-    "MissingDependencyError",
-    "InvalidOptionError",
-    "ResourceLimitError",
-    "OutputError",
-    *_LAZY,
-]
+__all__ = ["__version__", *_errors.__all__, *_LAZY]
 
 
 def __getattr__(name: str):

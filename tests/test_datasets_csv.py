@@ -20,23 +20,24 @@ def test_labels_with_a_byte_order_mark_are_read(tmp_path):
     assert [i.label for i in items] == ["cat", "dog"]
 
 
-@pytest.mark.parametrize("row", ["b.png", "b.png,", "b.png,  "])
-def test_a_row_without_a_label_is_refused_with_its_line(tmp_path, row):
+NO_LABEL = r"labels.csv:3: row 'b.png' has no label"
+NO_TARGET = r"pairs.csv:2: a row needs both a source and a target"
+
+
+@pytest.mark.parametrize("reader, name, text, match", [
+    *[(read_labels, "labels.csv", f"file,label\na.png,cat\n{row}\n", NO_LABEL)
+      for row in ("b.png", "b.png,", "b.png,  ")],
+    *[(read_pairs, "pairs.csv", f"source,target\n{row}\n", NO_TARGET)
+      for row in ("a.png", "a.png,", ",b.png")],
+])
+def test_short_rows_are_refused_with_their_line(tmp_path, reader, name, text, match):
     _files(tmp_path, "a.png", "b.png")
-    (tmp_path / "labels.csv").write_text(f"file,label\na.png,cat\n{row}\n")
-    with pytest.raises(DatasetError, match=r"labels.csv:3: row 'b.png' has no label"):
-        read_labels(tmp_path)
+    (tmp_path / name).write_text(text)
+    with pytest.raises(DatasetError, match=match):
+        reader(tmp_path)
 
 
 def test_labels_that_are_not_utf8_name_the_file(tmp_path):
     (tmp_path / "labels.csv").write_bytes(b"file,label\n\xff\xfe,\x80\n")
     with pytest.raises(DatasetError, match="not UTF-8"):
         read_labels(tmp_path)
-
-
-@pytest.mark.parametrize("row", ["a.off", "a.off,", ",b.off"])
-def test_a_pairs_row_without_a_target_is_refused(tmp_path, row):
-    _files(tmp_path, "a.off", "b.off")
-    (tmp_path / "pairs.csv").write_text(f"source,target\n{row}\n")
-    with pytest.raises(DatasetError, match=r"pairs.csv:2: a row needs both a source and a target"):
-        read_pairs(tmp_path)

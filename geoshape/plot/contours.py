@@ -10,17 +10,9 @@ import os
 import numpy as np
 
 from geoshape.io.atomic import save_figure_atomic
+from geoshape.plot.figures import new_figure, save_matrix_image
 
 __all__ = ["plot_contour_matching", "plot_distance_matrix"]
-
-
-def _figure(figsize):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize)
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def plot_contour_matching(P, Q, p2p_12, path: str | os.PathLike, *, title: str = "",
@@ -51,7 +43,7 @@ def plot_contour_matching(P, Q, p2p_12, path: str | os.PathLike, *, title: str =
     width = max(np.ptp(A[:, 0]), np.ptp(B[:, 0]))
     A = A - [A[:, 0].max(), 0] - [gap * width / 2 + 0.05, 0]
     B = B - [B[:, 0].min(), 0] + [gap * width / 2 + 0.05, 0]
-    fig = _figure((8, 4.5))
+    fig = new_figure((8, 4.5))
     ax = fig.add_subplot(111)
     for X, colour in ((A, "tab:blue"), (B, "tab:red")):
         closed = np.vstack([X, X[:1]])
@@ -70,29 +62,9 @@ def plot_contour_matching(P, Q, p2p_12, path: str | os.PathLike, *, title: str =
     save_figure_atomic(fig, path, dpi=120)
 
 
-def draw_class_boundaries(ax, labels) -> None:
-    """Thin lines between consecutive runs of equal labels on a matrix image (≤ 60 classes)."""
-    labels = list(labels)
-    cuts = [k for k in range(1, len(labels)) if labels[k] != labels[k - 1]]
-    if len(cuts) < 60:
-        for c in cuts:
-            ax.axhline(c - 0.5, color="tab:orange", lw=0.4)
-            ax.axvline(c - 0.5, color="tab:orange", lw=0.4)
-
-
 def plot_distance_matrix(D, path: str | os.PathLike, *, labels=None, title: str = "") -> None:
     """Image of a dissimilarity matrix (dark = similar, as thesis Fig. 3.7), class ticks.
 
     ``labels`` (N,) marks class boundaries when items of a class are contiguous.
     """
-    D = np.asarray(D, dtype=np.float64)
-    fig = _figure((6, 5.4))
-    ax = fig.add_subplot(111)
-    im = ax.imshow(D, cmap="gray", interpolation="nearest")
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
-    if labels is not None and len(labels) == len(D):
-        draw_class_boundaries(ax, labels)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    save_figure_atomic(fig, path, dpi=120)
+    save_matrix_image(D, path, labels=labels, title=title, dpi=120)

@@ -72,25 +72,15 @@ def plot_error_curves(curves: dict, path: str | os.PathLike, *, title: str | Non
     pathlib.Path
     """
 
-    from matplotlib.figure import Figure
-
-    from geoshape.io.atomic import save_figure_atomic
     from geoshape.metrics.correspondence import cumulative_error_curve
+    from geoshape.plot.figures import save_curves
 
-    fig = Figure(figsize=(5, 4))
-    ax = fig.add_subplot(1, 1, 1)
+    lines = []
     for name, value in curves.items():
         if isinstance(value, dict):
             value = value["errors_sym_aware" if sym_aware else "errors"]
         th, frac = cumulative_error_curve(value, thresholds)
         mean = float(np.mean(value)) if np.size(value) else float("nan")
-        ax.plot(th, 100 * frac, label=f"{name} (mean {mean:.3f})")
-    ax.set_xlabel("geodesic error / sqrt(area)")
-    ax.set_ylabel("% correspondences")
-    ax.set_ylim(0, 101)
-    ax.grid(alpha=0.3)
-    if title:
-        ax.set_title(title)
-    if curves:
-        ax.legend(loc="lower right")
-    return save_figure_atomic(fig, path, dpi=120)
+        lines.append((f"{name} (mean {mean:.3f})", th, 100 * frac))
+    return save_curves(lines, path, xlabel="geodesic error / sqrt(area)", ylabel="% correspondences",
+                       ylim=(0, 101), title=title, legend_loc="lower right")

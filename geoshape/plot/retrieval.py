@@ -13,6 +13,7 @@ import numpy as np
 
 from geoshape.geometry.mesh import face_normals
 from geoshape.io.validate import check_mesh
+from geoshape.plot.figures import save_curves, save_matrix_image
 
 __all__ = ["plot_similarity_matrix", "draw_mesh", "plot_query_strip"]
 
@@ -35,25 +36,13 @@ def plot_similarity_matrix(D, path: str | os.PathLike, *, labels=None, title: st
     labels : (N,) optional
         Class boundaries are drawn where consecutive labels differ.
     """
-    from matplotlib.figure import Figure
 
     D = np.asarray(D, dtype=np.float64)
     off = D.copy()
     np.fill_diagonal(off, 0.0)
     scale = off.max(axis=1, keepdims=True)
     S = 1.0 - np.divide(off, scale, out=np.zeros_like(off), where=scale > 0)
-    fig = Figure(figsize=(6, 5.4))
-    ax = fig.add_subplot(111)
-    im = ax.imshow(S, cmap="gray", interpolation="nearest", vmin=0, vmax=1)
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
-    if labels is not None and len(labels) == len(D):
-        from geoshape.plot.contours import draw_class_boundaries
-
-        draw_class_boundaries(ax, labels)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    _save(fig, path)
+    save_matrix_image(S, path, labels=labels, title=title, vmin=0, vmax=1, dpi=110)
 
 
 def draw_mesh(ax, V, F, *, color=(0.72, 0.74, 0.8)) -> None:
@@ -137,25 +126,9 @@ def plot_precision_recall(curves: dict, path: str | os.PathLike, title: str | No
         The written file.
     """
 
-    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
-
-    from geoshape.io.atomic import save_figure_atomic
-
-    fig = Figure(figsize=(5, 4))
-    ax = fig.add_subplot(1, 1, 1)
+    lines = []
     for name, curve in curves.items():
-        if isinstance(curve, dict):
-            r, p = curve["pr_recall"], curve["pr_precision"]
-        else:
-            r, p = curve
-        ax.plot(r, p, marker="o", ms=3, label=str(name))
-    ax.set_xlabel("recall")
-    ax.set_ylabel("precision")
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1.02)
-    ax.grid(alpha=0.3)
-    if title:
-        ax.set_title(title)
-    if curves:
-        ax.legend(loc="lower left")
-    return save_figure_atomic(fig, path, dpi=120)
+        r, p = (curve["pr_recall"], curve["pr_precision"]) if isinstance(curve, dict) else curve
+        lines.append((str(name), r, p))
+    return save_curves(lines, path, xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02),
+                       title=title, legend_loc="lower left", marker="o")
