@@ -76,6 +76,25 @@ def _inputs(folder: Path) -> None:
         save_mesh(meshes / f"m{i}.off", V, m.faces)
         rows.append(f"m{i}.off,{'sphere' if i < 2 else 'cigar'}")
     (meshes / "labels.csv").write_text("file,label\n" + "\n".join(rows) + "\n")
+    bad = folder / "defects"
+    bad.mkdir()
+    m = trimesh.creation.icosphere(subdivisions=2)
+    V, F = np.asarray(m.vertices), np.asarray(m.faces)
+    save_mesh(bad / "duplicate_faces.off", V, np.vstack([F, F[:5]]))
+    save_mesh(bad / "repeated_vertex.off", V, np.vstack([F[1:], [[F[0, 0], F[0, 0], F[0, 1]]]]))
+    save_mesh(
+        bad / "nonmanifold_edge.off",
+        np.vstack([V, [[3.0, 3.0, 3.0]]]),
+        np.vstack([F, [[F[0, 0], F[0, 1], len(V)]]]),
+    )
+    save_mesh(
+        bad / "zero_area_face.off",
+        np.vstack([V, V[F[0, 0]], V[F[0, 0]]]),
+        np.vstack([F, [[len(V), len(V) + 1, F[0, 0]]]]),
+    )
+    coincident = V.copy()
+    coincident[1] = coincident[0]
+    save_mesh(bad / "coincident_vertices.off", coincident, F)
     (folder / "script.mlx").write_text(
         "<!DOCTYPE FilterScript>\n<FilterScript>\n"
         ' <filter name="Compute normals for point sets"/>\n</FilterScript>\n'

@@ -58,7 +58,8 @@ def run_single(args: argparse.Namespace) -> int:
 
     V1, F1 = load_mesh(args.source)
     V2, F2 = load_mesh(args.target)
-    result = correspond(V1, F1, V2, F2, method=args.method, seed=args.seed)
+    result = correspond(V1, F1, V2, F2, method=args.method, seed=args.seed,
+                        names=(args.source, args.target))
     write_map(args.out, result.p2p_12)
     if args.plot:
         from geoshape.plot.correspondence import plot_correspondence

@@ -57,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from geoshape.cli._common import print_json
+    from geoshape.errors import InvalidMeshError
     from geoshape.io.mesh_io import load_mesh
     from geoshape.plot.meshes import render_mesh_png
     from geoshape.spectral.affinity import parse_sigma
@@ -69,12 +70,15 @@ def run(args: argparse.Namespace) -> int:
     if args.samples is not None and method == "auto":
         method = "nystrom"
     t0 = time.perf_counter()
-    emb = spectral_embedding(
-        V, F, k=args.dims, method=method, n_samples=args.samples, affinity=args.affinity,
-        sigma=sigma, geodesics=args.geodesics, scaling=args.scaling,
-        first="center" if args.center else "drop",
-        orthogonalize=not args.no_orthogonalize, seed=args.seed,
-    )
+    try:
+        emb = spectral_embedding(
+            V, F, k=args.dims, method=method, n_samples=args.samples, affinity=args.affinity,
+            sigma=sigma, geodesics=args.geodesics, scaling=args.scaling,
+            first="center" if args.center else "drop",
+            orthogonalize=not args.no_orthogonalize, seed=args.seed,
+        )
+    except InvalidMeshError as exc:  # name the file: the library only sees arrays
+        raise InvalidMeshError(f"{args.mesh}: {exc}") from None
     seconds = time.perf_counter() - t0
     out = save_embedding_mesh(args.output, emb.coords, F)
     if args.png:

@@ -480,7 +480,7 @@ def _shape_context(m1, m2, **options):
 
 
 def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, blas_threads: int | None = 1,
-               **options) -> Correspondence:
+               names: tuple[str, str] = ("source mesh", "target mesh"), **options) -> Correspondence:
     """Dense vertex correspondence from mesh 1 to mesh 2.
 
     Parameters
@@ -496,6 +496,8 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         ``symmetry_completion``, ``symmetry_ratio``, ``descriptor_map``, ``descriptor_k``,
         ``descriptor_ratio``, ``distortion_samples`` (geoshape),
         ``n_samples`` (Nyström samples), ``seed``.
+    names : (str, str)
+        How the two meshes are named in errors (the command line passes the file paths).
     blas_threads : int or None
         BLAS threads while computing (default 1). The pipeline makes many small and
         medium matrix products, for which threaded BLAS costs more than it gains — on a
@@ -528,8 +530,8 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         check_choice("eigenvector scaling", options["scaling"], SCALINGS)
     if "reorder" in options:
         check_choice("reordering method", options["reorder"], REORDER_METHODS)
-    m1 = _prepared(V1, F1, "source mesh")
-    m2 = _prepared(V2, F2, "target mesh")
+    m1 = _prepared(V1, F1, names[0])
+    m2 = _prepared(V2, F2, names[1])
     from geoshape import parallel
 
     with parallel.blas_threads(blas_threads, openmp=True):

@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoshape._options import check_choice
-from geoshape.errors import InvalidOptionError, ResourceLimitError
+from geoshape.errors import InvalidMeshError, InvalidOptionError, ResourceLimitError
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -90,12 +90,40 @@ def check_all_pairs_memory(n: int, *, what: str = "all-pairs geodesic distances"
         )
 
 
+def exact_geodesic_problems(V: np.ndarray, F: np.ndarray) -> list[str]:
+    """What stops libigl's exact (MMP) geodesics on a mesh: degenerate faces (a repeated
+    vertex or zero area), duplicate faces and non-manifold edges — inputs on which its C++
+    code corrupts memory instead of failing. Empty when the mesh is fine. O(m log m).
+
+    >>> exact_geodesic_problems(np.eye(3), np.array([[0, 1, 2], [2, 1, 0]]))
+    ['1 duplicate face']
+    """
+    from geoshape.geometry.mesh import face_areas, unique_edges
+
+    F = np.asarray(F, dtype=np.int64)
+    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    degenerate = int(np.count_nonzero(repeated | ~(face_areas(V, F) > 0)))
+    duplicate = len(F) - len(np.unique(np.sort(F, axis=1), axis=0))
+    _, counts = unique_edges(F, len(V), return_counts=True)
+    nonmanifold = int(np.count_nonzero(counts > 2))
+    found = [(degenerate, "degenerate face"), (duplicate, "duplicate face"),
+             (nonmanifold, "non-manifold edge")]
+    return [f"{k} {what}{'s' if k > 1 else ''}" for k, what in found if k]
+
+
 class _SurfaceSolver:
     """Single-source surface distances on one connected triangle mesh (heat or exact)."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, method: str, t_coef: float, clip: bool = True):
         self.V, self.F, self.method, self.clip = V, F, method, clip
         self.n = len(V)
+        if method == "exact" and clip:  # raw mode scores meshes as given; it never runs exact
+            problems = exact_geodesic_problems(V, F)
+            if problems:
+                raise InvalidMeshError(
+                    f"exact geodesics need a manifold mesh without degenerate or duplicate faces; "
+                    f"this one has {', '.join(problems)} (use the 'heat' or 'graph' geodesics, or repair it)"
+                )
         if method == "heat":
             import potpourri3d as pp3d
 

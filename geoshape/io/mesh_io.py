@@ -212,6 +212,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     >>> V, F = load_mesh("bunny.off.gz")  # doctest: +SKIP
     """
     path = Path(path)
+    if path.is_dir():
+        raise InvalidMeshError(f"{path}: is a folder, expected a mesh file")
     fmt, gz = mesh_format(path)
     data = _read_bytes(path, gz)
     where = str(path)

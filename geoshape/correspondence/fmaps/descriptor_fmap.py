@@ -110,6 +110,9 @@ def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, d
     Phi = basis.evecs[:, :k]
     grad_phi = (G @ Phi).reshape(3, m, k)  # ∇φ_j on each face
     grad_f = (G @ descriptors).reshape(3, m, -1)  # ∇f on each face
+    degenerate = ~(face_area > 0)  # zero-area faces: no gradient, and area × gradient → 0
+    if degenerate.any():
+        grad_phi[:, degenerate], grad_f[:, degenerate], normals[degenerate] = 0.0, 0.0, 0.0
     nx, ny, nz = (normals[:, c : c + 1] for c in range(3))
     gx, gy, gz = grad_f
     # single precision for the bulk products (relative error ~1e-7, half the memory traffic)
