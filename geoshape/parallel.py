@@ -24,7 +24,8 @@ Backends
 
 Work is sent in chunks of ``chunksize`` items (default: about four chunks per worker) to
 keep the per-task overhead small. Ctrl-C cancels pending work, shuts the pool or the
-temporary cluster down and re-raises :class:`KeyboardInterrupt`.
+temporary cluster down and re-raises :class:`KeyboardInterrupt`; local workers are
+terminated at once rather than awaited, and die with their parent (Linux).
 """
 
 from __future__ import annotations
@@ -297,12 +298,41 @@ def run_map(
     return results
 
 
+def die_with_parent(parent_pid: int | None = None) -> None:
+    """Ask the kernel to send this process SIGTERM when its parent dies (Linux
+    ``PR_SET_PDEATHSIG``; a no-op elsewhere), so no worker outlives a killed command. With
+    ``parent_pid``, exit at once if that parent already died before the request was made."""
+    import os
+    import sys
+
+    if sys.platform.startswith("linux"):
+        import contextlib
+        import ctypes
+        import signal
+
+        with contextlib.suppress(Exception):
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
+    if parent_pid is not None and os.getppid() != parent_pid:
+        os._exit(1)
+
+
+def _stop_now(executor) -> None:
+    """Terminate a pool's workers at once (Ctrl-C): running tasks are abandoned, not awaited."""
+    import contextlib
+
+    for proc in list(getattr(executor, "_processes", {}).values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()
+    executor.shutdown(wait=False, cancel_futures=True)
+
+
 def _run_processes(func, items, chunks, on_error, workers, results, bar) -> None:
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ctx = mp.get_context("spawn")
-    executor = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=ctx)
+    executor = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=ctx,
+                                   initializer=die_with_parent, initargs=(os.getpid(),))
     futures: dict = {}
     try:
         for rng_ in chunks:
@@ -315,8 +345,13 @@ def _run_processes(func, items, chunks, on_error, workers, results, bar) -> None
                 rng_ = futures[fut]
                 results[rng_.start : rng_.stop] = fut.result()
                 bar.update(len(rng_))
+    except KeyboardInterrupt:
+        # Ctrl-C: stop within a moment; what finished was already returned to the caller's
+        # results (and, for batches, written atomically), the rest is abandoned.
+        _stop_now(executor)
+        raise
     except BaseException:
-        # Ctrl-C or the first failing item: drop what has not started, then stop.
+        # The first failing item: drop what has not started, let running items finish.
         for fut in futures:
             fut.cancel()
         executor.shutdown(wait=True, cancel_futures=True)

@@ -21,21 +21,14 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from geoshape.parallel import die_with_parent
+
 __all__ = ["can_isolate", "run_isolated"]
 
 
 def can_isolate() -> bool:
     """True where ``fork`` exists (POSIX)."""
     return hasattr(os, "fork") and sys.platform != "win32"
-
-
-def _die_with_parent() -> None:
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
 
 
 def _remove_temporaries(outputs: list[Path]) -> list[str]:
@@ -62,12 +55,13 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
     """
     sys.stdout.flush()
     sys.stderr.flush()
+    parent = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child: do the work, never return into the caller's stack
         code = 1
         try:
             signal.signal(signal.SIGINT, signal.default_int_handler)
-            _die_with_parent()
+            die_with_parent(parent)
             code = int(work() or 0)
         except SystemExit as stop:
             code = stop.code if isinstance(stop.code, int) else 1

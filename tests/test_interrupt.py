@@ -1,0 +1,131 @@
+"""Ctrl-C stops a batch within seconds with exit 130, keeps every finished file whole, leaves
+no temporary, and no worker outlives the command."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+from geoshape.io.mesh_io import save_mesh
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def _batch_folder(folder, n_pairs: int = 12):
+    rng = np.random.default_rng(0)
+    m = trimesh.creation.icosphere(subdivisions=4)
+    rows = []
+    for i in range(n_pairs + 1):
+        V = m.vertices * rng.uniform(0.8, 1.2, 3)
+        save_mesh(folder / f"s{i}.off", V, m.faces)
+    rows = [f"s{i}.off,s{i + 1}.off" for i in range(n_pairs)]
+    (folder / "pairs.csv").write_text("source,target\n" + "\n".join(rows) + "\n")
+    return len(m.vertices)
+
+
+def _children(pid: int) -> set[int]:
+    out = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True).stdout
+    return {int(x) for x in out.split()}
+
+
+def _alive(pids) -> list[int]:
+    """The processes of ``pids`` still running (a zombie waiting to be reaped is not)."""
+    out = []
+    for p in pids:
+        try:
+            with open(f"/proc/{p}/stat") as fh:
+                if fh.read().rsplit(")", 1)[1].split()[0] != "Z":
+                    out.append(p)
+        except OSError:
+            pass
+    return out
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_correspond_batch_within_seconds(tmp_path):
+    n = _batch_folder(tmp_path)
+    out = tmp_path / "maps"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "geoshape",
+            "correspond-batch",
+            str(tmp_path),
+            "--out-dir",
+            str(out),
+            "--jobs",
+            "2",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out.is_dir() and any(out.glob("*.txt"))):
+        time.sleep(0.1)
+    assert proc.poll() is None, "the batch ended before it could be interrupted"
+    family = _children(proc.pid)
+    for child in list(family):
+        family |= _children(child)
+    t0 = time.time()
+    os.killpg(proc.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
+    _, err = proc.communicate(timeout=60)
+    assert time.time() - t0 < 5, f"took {time.time() - t0:.1f} s to stop"
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err
+    assert not list(out.glob(".*")), "temporaries left behind"
+    for f in out.glob("*.txt"):
+        assert len(f.read_text().splitlines()) == n  # finished maps are whole
+    time.sleep(1.0)
+    alive = [
+        p
+        for p in family
+        if os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+    ]
+    assert not alive, f"workers still running: {alive}"
+
+
+@pytest.mark.slow
+def test_workers_die_with_a_killed_command(tmp_path):
+    _batch_folder(tmp_path)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "geoshape",
+            "correspond-batch",
+            str(tmp_path),
+            "--out-dir",
+            str(tmp_path / "maps"),
+            "--jobs",
+            "2",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.time() + 120
+    family: set[int] = set()
+    while time.time() < deadline and len(family) < 3:  # the command's child and its workers
+        family = _children(proc.pid)
+        for child in list(family):
+            family |= _children(child)
+        time.sleep(0.2)
+    proc.kill()
+    proc.wait()
+    time.sleep(2.0)
+    alive = [
+        p
+        for p in family
+        if os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+    ]
+    assert not alive, f"processes outlived the killed command: {alive}"
