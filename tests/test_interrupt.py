@@ -129,3 +129,86 @@ def test_workers_die_with_a_killed_command(tmp_path):
         if os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
     ]
     assert not alive, f"processes outlived the killed command: {alive}"
+
+
+def _mesh_folder(folder, n: int = 40):
+    rng = np.random.default_rng(1)
+    folder.mkdir()
+    m = trimesh.creation.icosphere(subdivisions=4)
+    rows = []
+    for i in range(n):
+        save_mesh(folder / f"m{i:02d}.off", m.vertices * rng.uniform(0.5, 1.5, 3), m.faces)
+        rows.append(f"m{i:02d}.off,{'a' if i % 2 else 'b'}")
+    (folder / "labels.csv").write_text("file,label\n" + "\n".join(rows) + "\n")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["index add", "retrieval3d"])
+def test_ctrl_c_stops_descriptor_batches_and_index_add_resumes(tmp_path, command):
+    _mesh_folder(tmp_path / "m")
+    db, matrix = tmp_path / "idx.db", tmp_path / "D.npy"
+    argv = (
+        [
+            "index",
+            "add",
+            str(db),
+            str(tmp_path / "m"),
+            "--descriptor",
+            "shd",
+            "--jobs",
+            "2",
+            "--batch-size",
+            "4",
+        ]
+        if command == "index add"
+        else [
+            "retrieval3d",
+            str(tmp_path / "m"),
+            "--descriptor",
+            "shd",
+            "--matrix",
+            str(matrix),
+            "--jobs",
+            "2",
+        ]
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "geoshape", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    time.sleep(4.0)  # start-up, then some descriptors
+    assert proc.poll() is None, "finished before it could be interrupted"
+    t0 = time.time()
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert time.time() - t0 < 5, f"took {time.time() - t0:.1f} s to stop"
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    assert not matrix.exists() and not list(tmp_path.glob(".*tmp*"))
+    if command == "index add":  # resumable: a second run completes, nothing twice
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "geoshape",
+                "index",
+                "add",
+                str(db),
+                str(tmp_path / "m"),
+                "--descriptor",
+                "shd",
+                "--jobs",
+                "2",
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+        )
+        assert done.returncode == 0, done.stderr
+        import json
+
+        summary = json.loads(done.stdout)
+        assert summary["rows_in_index"] == 40
+        assert summary["added"] + summary["skipped_unchanged"] == 40

@@ -1,4 +1,5 @@
-"""``geoshape bench reliability``: every command against bad output paths and a full disk.
+"""``geoshape bench reliability``: every command against bad output paths, a full disk,
+defective meshes, crashing native code and out-of-range options.
 
 Each case runs ``geoshape …`` in its own subprocess (so a crash cannot hide the others) on
 small generated inputs, and is judged by what a user sees: the exit status (0, 2 or 130
@@ -76,6 +77,10 @@ def _inputs(folder: Path) -> None:
         save_mesh(meshes / f"m{i}.off", V, m.faces)
         rows.append(f"m{i}.off,{'sphere' if i < 2 else 'cigar'}")
     (meshes / "labels.csv").write_text("file,label\n" + "\n".join(rows) + "\n")
+    (folder / "negative.mlx").write_text(  # PyMeshLab dies with SIGBUS on this one
+        '<!DOCTYPE FilterScript>\n<FilterScript>\n <filter name="meshing_decimation_quadric_edge_collapse">\n'
+        '  <Param type="RichInt" name="targetfacenum" value="-5"/>\n </filter>\n</FilterScript>\n'
+    )
     bad = folder / "defects"
     bad.mkdir()
     m = trimesh.creation.icosphere(subdivisions=2)
@@ -105,7 +110,8 @@ def _inputs(folder: Path) -> None:
 
 
 def _geoshape(*argv: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONFAULTHANDLER="1")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONFAULTHANDLER"}
+    env["MPLBACKEND"] = "Agg"
     return subprocess.run(
         [sys.executable, "-m", "geoshape", *argv],
         capture_output=True,
@@ -117,7 +123,7 @@ def _geoshape(*argv: str, timeout: float = 300.0) -> subprocess.CompletedProcess
 
 
 def cases() -> list[Case]:
-    """Every case class of the reliability issue that concerns outputs."""
+    """Every case class of the reliability issue, each one command line."""
     sil, meshes = "{in}/sil", "{in}/meshes"
     a, b = f"{sil}/s0.png", f"{sil}/s1.png"
     m0, m1 = f"{meshes}/m0.off", f"{meshes}/m1.off"
@@ -234,6 +240,83 @@ def cases() -> list[Case]:
             "match2d --out and --plot",
             ("match2d", a, b, "--out", "{out}/p.csv", "--plot", "{out}/p.png"),
             expect=frozenset({0}),
+        ),
+    ]
+    return out + _input_cases(sil, meshes, a, b, m0, m1)
+
+
+def _input_cases(sil: str, meshes: str, a: str, b: str, m0: str, m1: str) -> list[Case]:
+    """Defective meshes, native crashes, out-of-range options, wrong kinds of input."""
+    defects = "{in}/defects"
+    out = [
+        Case(
+            "mesh defect → exact geodesics",
+            f"embed {name}.off --geodesics exact",
+            ("embed", f"{defects}/{name}.off", "-o", "{out}/e.ply", "--geodesics", "exact"),
+            clean=("{out}",),
+        )
+        for name in ("duplicate_faces", "repeated_vertex", "nonmanifold_edge", "zero_area_face")
+    ]
+    ok = frozenset({0})
+    out += [
+        Case(
+            "mesh defect, handled",
+            "correspond zero_area_face.off m1.off",
+            ("correspond", f"{defects}/zero_area_face.off", m1, "-o", "{out}/map.txt"),
+            expect=ok,
+        ),
+        Case(
+            "mesh defect, handled",
+            "embed coincident_vertices.off --geodesics heat",
+            ("embed", f"{defects}/coincident_vertices.off", "-o", "{out}/e.ply", "--geodesics", "heat"),
+            expect=ok,
+        ),
+        Case(
+            "native crash",
+            "run: PyMeshLab decimation to -5 faces (SIGBUS inside PyMeshLab)",
+            ("run", "-i", m0, "-s", "{in}/negative.mlx", "-o", "{out}/out.ply"),
+            clean=("{out}",),
+        ),
+        Case(
+            "option out of range",
+            "embed --seed -1",
+            ("embed", m0, "-o", "{out}/e.ply", "--seed", "-1"),
+            clean=("{out}",),
+        ),
+        Case(
+            "option out of range",
+            "embed --sigma 1e-300",
+            ("embed", m0, "-o", "{out}/e.ply", "--sigma", "1e-300"),
+            clean=("{out}",),
+        ),
+        Case("option out of range", "match2d --n-points 100000", ("match2d", a, b, "--n-points", "100000")),
+        Case(
+            "option out of range",
+            "retrieval2d --n-jobs 0",
+            ("retrieval2d", sil, "--matrix", "{out}/D.npy", "--n-jobs", "0"),
+            clean=("{out}",),
+        ),
+        Case(
+            "option out of range",
+            "retrieval3d --rerank-k 0",
+            ("retrieval3d", meshes, "--descriptor", "d2", "--matrix", "{out}/D.npy", "--rerank-k", "0"),
+            clean=("{out}",),
+        ),
+        Case(
+            "option out of range",
+            "index query --rerank-k -1",
+            ("index", "query", "{in}/index.db", m0, "--rerank-k", "-1"),
+        ),
+        Case(
+            "wrong kind of input",
+            "correspond DIR m1.off",
+            ("correspond", meshes, m1, "-o", "{out}/map.txt"),
+            clean=("{out}",),
+        ),
+        Case(
+            "wrong kind of input",
+            "index add into a file that is not an index",
+            ("index", "add", "{in}/script.mlx", meshes, "--descriptor", "d2"),
         ),
     ]
     return out
@@ -353,7 +436,7 @@ def markdown(results: list[Outcome]) -> str:
     ]
     counts = {s: sum(o.status == s for o in results) for s in ("ok", "FAIL", "skipped")}
     return (
-        "## Reliability: bad output paths and a full disk\n\n"
+        "## Reliability: bad output paths, a full disk, defective meshes, native crashes, bad options\n\n"
         "Command: `geoshape bench reliability`. Each row is one `geoshape` command line run in its own "
         "subprocess on small generated inputs; it passes when it exits with the expected status, prints "
         "no traceback (one line on stderr for exit 2), is not killed by a signal, and leaves no file in "
