@@ -81,6 +81,23 @@ def _inputs(folder: Path) -> None:
         '<!DOCTYPE FilterScript>\n<FilterScript>\n <filter name="meshing_decimation_quadric_edge_collapse">\n'
         '  <Param type="RichInt" name="targetfacenum" value="-5"/>\n </filter>\n</FilterScript>\n'
     )
+    (folder / "exact_geodesics.mlx").write_text(
+        '<!DOCTYPE FilterScript>\n<FilterScript>\n <filter id="geodesic_distance_from_selection">\n'
+        '  <Param type="RichString" name="sources" value="0"/>\n'
+        '  <Param type="RichEnum" name="method" value="exact"/>\n </filter>\n</FilterScript>\n'
+    )
+    pairs = folder / "pairs"
+    for sub in ("a", "b"):
+        (pairs / sub).mkdir(parents=True)
+        for name, i in (("x", 0), ("y", 1)):
+            (pairs / sub / f"{name}.off").write_bytes((meshes / f"m{i}.off").read_bytes())
+    (pairs / "colliding.csv").write_text("source,target\na/x.off,a/y.off\nb/x.off,b/y.off\n")
+    (pairs / "one_column.csv").write_text("source,target\na/x.off\n")
+    unlabelled = folder / "sil_unlabelled"
+    unlabelled.mkdir()
+    for i in (0, 1):
+        (unlabelled / f"s{i}.png").write_bytes((sil / f"s{i}.png").read_bytes())
+    (unlabelled / "labels.csv").write_text("file,label\ns0.png,round\ns1.png\n")
     bad = folder / "defects"
     bad.mkdir()
     m = trimesh.creation.icosphere(subdivisions=2)
@@ -306,6 +323,84 @@ def _input_cases(sil: str, meshes: str, a: str, b: str, m0: str, m1: str) -> lis
             "option out of range",
             "index query --rerank-k -1",
             ("index", "query", "{in}/index.db", m0, "--rerank-k", "-1"),
+        ),
+        Case(
+            "option out of range",
+            "embed --dims 200 on a 162-vertex mesh",
+            ("embed", m0, "-o", "{out}/e.ply", "--dims", "200"),
+            clean=("{out}",),
+        ),
+        Case(
+            "native crash avoided",
+            "run: exact-geodesic filter on a mesh with duplicate faces",
+            (
+                "run",
+                "-i",
+                f"{defects}/duplicate_faces.off",
+                "-s",
+                "{in}/exact_geodesics.mlx",
+                "-o",
+                "{out}/o.ply",
+            ),
+            clean=("{out}",),
+        ),
+        Case(
+            "batch",
+            "correspond-batch: two pairs would write one map",
+            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{out}/maps"),
+            clean=("{out}",),
+        ),
+        Case(
+            "batch",
+            "correspond-batch: a one-column row in pairs.csv",
+            ("correspond-batch", "{in}/pairs", "--pairs", "one_column.csv", "--out-dir", "{out}/maps"),
+            clean=("{out}",),
+        ),
+        Case(
+            "batch",
+            "correspond-batch --out-dir is a file",
+            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{in}/script.mlx"),
+        ),
+        Case(
+            "batch",
+            "correspond-batch --out-dir in a read-only folder",
+            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{ro}/maps"),
+            clean=("{ro}",),
+            needs="ro",
+        ),
+        Case(
+            "gen",
+            "gen decimate --out in a read-only folder",
+            ("gen", "decimate", m0, "--ratios", "0.5", "--out", "{ro}/ladder"),
+            clean=("{ro}",),
+            needs="ro",
+        ),
+        Case(
+            "gen",
+            "run --save-script into a read-only folder",
+            ("run", "-i", m0, "-s", "{in}/script.mlx", "-o", "{out}/o.ply", "--save-script", "{ro}/used.mlx"),
+            clean=("{out}", "{ro}"),
+            needs="ro",
+        ),
+        Case(
+            "full disk",
+            "embed on a full disk",
+            ("embed", m0, "-o", "{full}/e.ply"),
+            clean=("{full}",),
+            needs="full",
+        ),
+        Case(
+            "full disk",
+            "index add into a database on a full disk",
+            ("index", "add", "{full}/idx.db", meshes, "--descriptor", "d2", "--backend", "serial"),
+            clean=("{full}",),
+            needs="full",
+        ),
+        Case(
+            "labels",
+            "retrieval2d: a labels.csv row without a label",
+            ("retrieval2d", "{in}/sil_unlabelled", "--matrix", "{out}/D.npy"),
+            clean=("{out}",),
         ),
         Case(
             "wrong kind of input",

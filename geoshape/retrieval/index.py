@@ -179,12 +179,15 @@ class ShapeIndex:
                 break
             except sqlite3.OperationalError as exc:
                 if "locked" not in str(exc) and "busy" not in str(exc) or time.monotonic() > deadline:
-                    self._conn.close()
+                    self._abandon()
                     raise DatasetError(f"{self.path}: cannot open the index: {exc}") from None
                 time.sleep(0.05)
             except sqlite3.DatabaseError as exc:
-                self._conn.close()
+                self._abandon()
                 raise DatasetError(f"{self.path}: not a geoshape index ({exc})") from None
+            except BaseException:
+                self._abandon()
+                raise
         self._cache: dict = {}
 
     def _set_up(self) -> None:
@@ -218,6 +221,13 @@ class ShapeIndex:
         with contextlib.suppress(sqlite3.Error):
             self._conn.close()
 
+    def _abandon(self) -> None:
+        """Close after a failed setup; a file this object created is removed again."""
+        self.close()
+        if self._created:
+            for suffix in ("", "-wal", "-shm", "-journal"):
+                Path(str(self.path) + suffix).unlink(missing_ok=True)
+
     def _discard_if_new_and_empty(self) -> None:
         """Close and delete the database file this object created, if it stores nothing."""
         if not self._created:
@@ -227,9 +237,7 @@ class ShapeIndex:
         except sqlite3.Error:
             empty = True
         if empty:
-            self._conn.close()
-            for suffix in ("", "-wal", "-shm"):
-                Path(str(self.path) + suffix).unlink(missing_ok=True)
+            self._abandon()
 
     def __enter__(self):
         return self
