@@ -61,6 +61,7 @@ def test_an_existing_index_survives_a_failed_add(tmp_path):
     assert len(_rows(db)) == 2
 
 
+@pytest.mark.slow
 def test_two_concurrent_adds_on_a_fresh_database_compute_each_row_once(tmp_path):
     _write_meshes(tmp_path / "m", 12)
     db = tmp_path / "fresh.db"

@@ -28,6 +28,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("evd", "geoshape.bench.evd"),
     ("knn", "geoshape.bench.knn"),
     ("reliability", "geoshape.bench.reliability"),
+    ("rerank", "geoshape.bench.rerank"),
 ]
 
 

@@ -19,7 +19,11 @@ def register(subparsers) -> None:
     p.add_argument("folder", metavar="DIR", help="folder with images and labels.csv")
     p.add_argument("--method", default="default",
                    help="default, gsc, shape_context, idsc, curvature_map")
-    p.add_argument("--matrix", required=True, help="output .npy of the N x N matrix")
+    p.add_argument("--rerank", default=None, metavar="NAME",
+                   help="re-rank the matrix over the whole collection (unsupervised): lcdp "
+                   "(locally constrained diffusion); default none")
+    p.add_argument("--matrix", required=True,
+                   help="output .npy of the N x N matrix (re-ranked with --rerank)")
     p.add_argument("--json", help="output JSON with the metrics and timing")
     p.add_argument("--plot", help="output picture of the matrix")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
@@ -38,6 +42,10 @@ def run(args) -> int:
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
 
     method_spec(args.method)
+    if args.rerank is not None:
+        from geoshape.retrieval.rerank import check_rerank_method
+
+        check_rerank_method(args.rerank)
     if args.backend is not None:
         from geoshape._options import check_choice
         from geoshape.parallel import BACKENDS
@@ -45,9 +53,15 @@ def run(args) -> int:
         check_choice("backend", args.backend, BACKENDS)
     result = retrieval_on_folder(args.folder, args.method, n_points=args.n_points,
                                  backend=args.backend, n_jobs=args.n_jobs)
+    if args.rerank is not None:
+        from geoshape.retrieval.rerank import rerank_and_score
+
+        result.update(rerank_and_score(result["D"], result["labels"], args.rerank))
     metrics = result["metrics"]
     summary = {
         "method": args.method,
+        "rerank": args.rerank,
+        "seconds_rerank": result.get("seconds_rerank"),
         "n": len(result["files"]),
         "files": result["files"],
         "labels": result["labels"],
@@ -69,7 +83,8 @@ def run(args) -> int:
 
         plot_distance_matrix(result["D"], args.plot, labels=result["labels"],
                              title=f"{args.method} ({summary['n']} shapes)")
-    print(f"{summary['n']} shapes, method {args.method}, {result['seconds']:.1f} s")
+    shown = args.method + (f", re-ranked by {args.rerank}" if args.rerank else "")
+    print(f"{summary['n']} shapes, method {shown}, {result['seconds']:.1f} s")
     if metrics:
         counts = metrics["top_k_counts"]
         print(f"top-1..{len(counts)}: {counts} total {metrics['top_k_total']}/{metrics['top_k_max']}")

@@ -37,6 +37,9 @@ def register(subparsers) -> None:
     p.add_argument("--plot-matrix", metavar="m.png", help="output similarity-matrix image")
     p.add_argument("--rerank-k", type=POSITIVE_INT, default=None, metavar="K",
                    help="evd_ccd: shortlist re-ranked by CCD (default 20)")
+    p.add_argument("--rerank", default=None, metavar="NAME",
+                   help="re-rank the matrix over the whole collection (unsupervised): lcdp "
+                   "(locally constrained diffusion); default none")
     p.add_argument("--seed", type=SEED, default=0, help="seed of sampling (default 0)")
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -62,6 +65,10 @@ def run(args) -> int:
         descriptor_params(nm, args.affinity, args.seed)
     if args.backend is not None:
         check_choice("backend", args.backend, BACKENDS)
+    if args.rerank is not None:
+        from geoshape.retrieval.rerank import check_rerank_method
+
+        check_rerank_method(args.rerank)
     if args.rerank_k is not None and args.descriptor not in RERANKERS:
         from geoshape.errors import InvalidOptionError
 
@@ -70,12 +77,18 @@ def run(args) -> int:
                                 seed=args.seed, rerank_k=args.rerank_k or DEFAULT_RERANK_K,
                                 backend=args.backend, n_jobs=args.n_jobs,
                                 scheduler=args.scheduler)
+    if args.rerank is not None:
+        from geoshape.retrieval.rerank import rerank_and_score
+
+        res.update(rerank_and_score(res["D"], res["labels"], args.rerank))
     m = res["metrics"]
     keys = {"NN": "nearest_neighbor", "FT": "first_tier", "ST": "second_tier",
             "E": "e_measure", "DCG": "dcg", "mAP": "map"}
     summary = {
         "descriptor": args.descriptor,
         "affinity": args.affinity,
+        "rerank": args.rerank,
+        "seconds_rerank": res.get("seconds_rerank"),
         "n": len(res["files"]),
         "files": res["files"],
         "labels": res["labels"],
@@ -91,6 +104,7 @@ def run(args) -> int:
     if args.json:
         write_text_atomic(args.json, json.dumps(to_jsonable(summary), indent=2) + "\n")
     name = args.descriptor + (f" ({args.affinity})" if args.affinity else "")
+    name += f", re-ranked by {args.rerank}" if args.rerank else ""
     if args.plot_pr and m:
         from geoshape.plot.retrieval import plot_precision_recall
 
