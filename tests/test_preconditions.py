@@ -71,3 +71,23 @@ def test_correspond_names_the_meshes_it_refuses(capsys, tmp_path):
         == 2
     )
     assert f"{tmp_path / 'tri.off'}: 3 vertices is too few" in capsys.readouterr().err
+
+
+def test_a_corrupt_stl_is_named_as_such_even_without_optional_text_decoders(tmp_path, monkeypatch):
+    import builtins
+    import struct
+
+    from geoshape.io.mesh_io import load_mesh
+
+    real_import = builtins.__import__
+
+    def no_charset_normalizer(name, *args, **kwargs):
+        if name.startswith("charset_normalizer"):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_charset_normalizer)
+    path = tmp_path / "cut.stl"
+    path.write_bytes(b"solid " + b"\xff" * 74 + struct.pack("<I", 10) + b"\0" * 50)
+    with pytest.raises(InvalidMeshError, match="cut.stl: cannot parse STL file: truncated or corrupt"):
+        load_mesh(path)

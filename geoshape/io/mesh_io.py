@@ -174,6 +174,9 @@ def _load_with_trimesh(data: bytes, fmt: str, where: str) -> tuple[np.ndarray, n
 
     try:
         mesh = trimesh.load(io.BytesIO(data), file_type=fmt, process=False, maintain_order=True)
+    except ImportError:  # a corrupt binary file sends trimesh to an optional text decoder
+        raise InvalidMeshError(f"{where}: cannot parse {fmt.upper()} file: truncated or corrupt "
+                               f"(neither a complete binary {fmt.upper()} nor readable text)") from None
     except Exception as exc:  # third-party parsers raise anything on corrupt input
         raise InvalidMeshError(f"{where}: cannot parse {fmt.upper()} file: {exc}") from None
     if isinstance(mesh, trimesh.Scene):
