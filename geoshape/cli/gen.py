@@ -108,6 +108,20 @@ def register(subparsers) -> None:
     a.set_defaults(handler=run_articulated)
     declare_outputs(a, all_or_nothing=False, out="folder")
 
+    q = sub.add_parser(
+        "perturb2d",
+        help="a perturbed copy of a labelled silhouette folder: mirror, noise, notch or erode",
+        description="Same file names, classes and labels.csv order as DIR, so scores compare "
+        "directly with the clean set. mirror: every other image flipped left-right; noise: "
+        "rough boundary; notch: two small bites; erode: thin parts opened away.",
+    )
+    q.add_argument("folder", metavar="DIR", help="folder with silhouette images and labels.csv")
+    q.add_argument("--kind", required=True, help="mirror, noise, notch or erode")
+    q.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
+    q.add_argument("--out", required=True, metavar="OUT_DIR", help="output folder")
+    q.set_defaults(handler=run_perturb2d)
+    declare_outputs(q, all_or_nothing=False, out="folder")
+
 
 def _missing_generator(args: argparse.Namespace) -> int:
     args._gen_parser.print_help()
@@ -219,4 +233,15 @@ def run_articulated(args: argparse.Namespace) -> int:
     )
     print(f"{args.out}: {len(res['files'])} meshes in {len(set(res['labels']))} classes, "
           f"{len(res['pairs'])} pairs with identity ground truth (labels.csv, pairs.csv)")
+    return 0
+
+
+def run_perturb2d(args: argparse.Namespace) -> int:
+    from geoshape_datasets_gen.perturb2d import PERTURBATIONS, perturb_collection
+
+    from geoshape._options import check_choice
+
+    check_choice("perturbation", args.kind, PERTURBATIONS)
+    paths = perturb_collection(args.folder, args.out, args.kind, seed=args.seed)
+    print(f"{args.out}: {len(paths)} {args.kind} silhouettes with labels.csv")
     return 0
