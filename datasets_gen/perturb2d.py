@@ -57,11 +57,11 @@ def _stamp(mask: np.ndarray, centre, radius: float, value: bool) -> None:
     mask[y0:y1, x0:x1][sub] = value
 
 
-def perturb_mask(mask, kind: str, rng: np.random.Generator, *, index: int = 0) -> np.ndarray:
+def perturb_mask(mask, kind: str, rng: np.random.Generator, *, index: int = 0, parity: int = 0) -> np.ndarray:
     """One perturbed copy of a binary mask ``(h, w)`` (``True`` = object); see the module text.
 
-    ``index`` is the item's position in its collection (``mirror`` flips every other one,
-    starting at a seeded parity).
+    ``mirror`` flips the items whose position ``index`` in the collection has the same parity
+    as ``parity`` (every other one); the other kinds draw from ``rng``.
     """
     from scipy import ndimage
 
@@ -73,7 +73,7 @@ def perturb_mask(mask, kind: str, rng: np.random.Generator, *, index: int = 0) -
         return mask
     size = float(np.hypot(rows.max() - rows.min() + 1, cols.max() - cols.min() + 1))
     if kind == "mirror":
-        return mask[:, ::-1].copy() if index % 2 == int(rng.integers(2)) else mask
+        return mask[:, ::-1].copy() if index % 2 == parity % 2 else mask
     if kind == "erode":
         return ndimage.binary_opening(mask, structure=_disc(0.03 * size)) | _largest_core(mask)
     edge = _boundary(mask)
@@ -119,12 +119,18 @@ def perturb_collection(
         raise InvalidOptionError(f"perturbation must be one of {', '.join(PERTURBATIONS)}; got {kind!r}")
     items = read_labels(src)
     out = Path(dst)
+    if out.resolve() == Path(src).resolve():
+        raise InvalidOptionError(f"{dst}: the output folder is the input folder; choose another")
+    names = [Path(item.path).with_suffix(".png").name for item in items]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InvalidOptionError(f"{src}: several images would be written as {', '.join(twice)}")
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng([seed, PERTURBATIONS.index(kind)])
+    parity = int(rng.integers(2))
     lines, paths = ["file,label"], []
-    for i, item in enumerate(items):
-        mask = perturb_mask(load_silhouette(item.path), kind, rng, index=i)
-        name = Path(item.path).with_suffix(".png").name
+    for i, (item, name) in enumerate(zip(items, names, strict=True)):
+        mask = perturb_mask(load_silhouette(item.path), kind, rng, index=i, parity=parity)
         with atomic_path(out / name, suffix=".png") as tmp:
             Image.fromarray((mask * 255).astype(np.uint8)).save(tmp, format="PNG")
         lines.append(f"{name},{item.label}")

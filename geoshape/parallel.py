@@ -320,10 +320,15 @@ def _stop_now(executor) -> None:
     """Terminate a pool's workers at once (Ctrl-C): running tasks are abandoned, not awaited."""
     import contextlib
 
-    for proc in list(getattr(executor, "_processes", {}).values()):
+    procs = list(getattr(executor, "_processes", {}).values())
+    for proc in procs:
         with contextlib.suppress(Exception):
             proc.terminate()
-    executor.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:  # reaped, so their queues and semaphores are released (no leak warnings)
+        with contextlib.suppress(Exception):
+            proc.join(timeout=2.0)
+    with contextlib.suppress(Exception):
+        executor.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_processes(func, items, chunks, on_error, workers, results, bar) -> None:

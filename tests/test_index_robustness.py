@@ -91,3 +91,19 @@ def test_deleted_files_are_never_returned_and_prune_removes_them(tmp_path):
         assert str(paths[0].resolve()) not in [h.path for h in hits] and len(hits) == 3
         assert idx.prune() == [str(paths[0].resolve())]
         assert idx.count() == 3
+
+
+@pytest.mark.slow
+def test_racing_first_adds_never_delete_the_database(tmp_path):
+    """Two adds of the same two files on a new database: whichever finds its files claimed by
+    the other must not remove the file the other is writing (repeated to meet the race)."""
+    paths = _write_meshes(tmp_path / "m", 2)
+    for trial in range(4):
+        db = tmp_path / f"race{trial}.db"
+        cmd = [sys.executable, "-m", "geoshape", "index", "add", str(db), *map(str, paths),
+               "--descriptor", "shd", "--backend", "serial"]
+        procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                 for _ in range(2)]
+        outs = [p.communicate(timeout=300) for p in procs]
+        assert [p.returncode for p in procs] == [0, 0], [o[1] for o in outs]
+        assert db.exists() and len(_rows(db)) == 2, f"trial {trial}: the database was lost"

@@ -52,3 +52,31 @@ def test_the_childs_exit_status_and_output_pass_through(tmp_path):
     ''')
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert done.returncode == 7 and done.stdout.strip() == "from the child"
+
+
+def test_kill_int_of_the_command_alone_reaches_the_child_once(tmp_path):
+    """A supervisor's ``kill -INT PID`` (not the whole group) still stops the work: exit 130."""
+    import os
+    import signal
+    import time
+
+    script = textwrap.dedent('''
+        import sys, time
+        from geoshape.cli.isolation import run_isolated
+        def work():
+            try:
+                print("started", flush=True)
+                time.sleep(60)
+            except KeyboardInterrupt:
+                print("interrupted once", file=sys.stderr)
+                return 130
+            return 0
+        sys.exit(run_isolated(work, command="demo", inputs=[], outputs=[]))
+    ''')
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    assert proc.stdout.readline().strip() == "started"
+    time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and err.count("interrupted once") == 1, err

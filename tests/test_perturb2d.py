@@ -20,9 +20,9 @@ def _figure():
 def test_mirror_flips_every_other_item():
     rng = np.random.default_rng(0)
     m = _figure()
-    out = [perturb_mask(m, "mirror", np.random.default_rng(1), index=i) for i in range(4)]
+    out = [perturb_mask(m, "mirror", np.random.default_rng(1), index=i, parity=1) for i in range(4)]
     flipped = [not np.array_equal(o, m) for o in out]
-    assert flipped in ([True, False, True, False], [False, True, False, True])
+    assert flipped == [False, True, False, True]
     assert any(np.array_equal(o, m[:, ::-1]) for o in out)
     assert perturb_mask(m, "noise", rng).sum() > 0
 
@@ -62,3 +62,20 @@ def test_collections_are_deterministic_and_keep_labels(tmp_path):
         assert (tmp_path / f"{kind}1" / "labels.csv").read_text() == "file,label\na.png,x\nb.png,y\n"
     with pytest.raises(InvalidOptionError, match="mirror, noise, notch, erode"):
         perturb_collection(src, tmp_path / "x", "blur")
+    with pytest.raises(InvalidOptionError, match="output folder is the input folder"):
+        perturb_collection(src, src, "noise")
+
+
+def test_a_collection_mirrors_exactly_every_other_item(tmp_path):
+    from PIL import Image
+
+    src = tmp_path / "src"
+    src.mkdir()
+    rows = []
+    for i in range(8):
+        Image.fromarray((_figure() * 255).astype(np.uint8)).save(src / f"s{i}.png")
+        rows.append(f"s{i}.png,c")
+    (src / "labels.csv").write_text("file,label\n" + "\n".join(rows) + "\n")
+    flipped = [not np.array_equal(np.asarray(Image.open(p)) > 0, _figure())
+               for p in perturb_collection(src, tmp_path / "m", "mirror", seed=3)]
+    assert flipped in ([True, False] * 4, [False, True] * 4)

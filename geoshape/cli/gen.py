@@ -97,13 +97,13 @@ def register(subparsers) -> None:
     a.add_argument("--instances", type=POSITIVE_INT, default=1, help="instances per class (default 1)")
     a.add_argument("--poses", type=POSITIVE_INT, default=4, help="poses per instance (default 4)")
     a.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
-    a.add_argument("--vertices", type=RangeType(int, 20), default=3000,
+    a.add_argument("--vertices", type=RangeType(int, 500, 50000), default=3000,
                    help="vertices per mesh (default 3000)")
-    a.add_argument("--resolution", type=RangeType(int, 16, 4096), default=128,
+    a.add_argument("--resolution", type=RangeType(int, 48, 320), default=128,
                    help="voxels along the longest side before polygonisation (default 128)")
     a.add_argument("--variation", type=NONNEGATIVE_FLOAT, default=0.15,
                    help="intra-class limb length/thickness variation (default 0.15)")
-    a.add_argument("--amount", type=NONNEGATIVE_FLOAT, default=1.0,
+    a.add_argument("--amount", type=RangeType(float, 0.0, 1.0), default=1.0,
                    help="fraction of the joint limits used by random poses (default 1)")
     a.set_defaults(handler=run_articulated)
     declare_outputs(a, all_or_nothing=False, out="folder")

@@ -113,7 +113,7 @@ def run_add(args) -> int:
                       backend=args.backend, n_jobs=args.n_jobs, scheduler=args.scheduler,
                       batch_size=args.batch_size, progress=progress if args.verbose else None)
         total = idx.count()
-        if total == 0:  # nothing stored: a new database file is not left behind
+        if total == 0 and not rep.claimed_elsewhere:  # a failed first add leaves no file
             idx._discard_if_new_and_empty()
     for path, msg in rep.failed:
         print(f"geoshape index add: skipped {msg if path in msg else f'{path}: {msg}'}",

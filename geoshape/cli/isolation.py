@@ -5,9 +5,10 @@ Preconditions are checked before native calls wherever they are known (see
 :func:`geoshape.io.validate.check_mesh` and the geodesic backends); this is the net under
 what cannot be known in advance, e.g. a PyMeshLab filter given out-of-range values by an
 ``.mlx`` script. The child does the whole command (its outputs are written atomically and,
-for all-or-nothing commands, committed only when it succeeds); the parent waits, ignores
-Ctrl-C (the child receives it too and exits 130 by itself), and when the child dies by a
-signal removes the child's temporary files beside the declared outputs and reports it.
+for all-or-nothing commands, committed only when it succeeds) in its own process group; the
+parent waits and passes SIGINT, SIGTERM and SIGHUP on to it (so Ctrl-C, or ``kill -INT`` of
+the command, reaches the child exactly once and it exits 130 by itself), and when the child
+dies by a signal removes the child's temporary files beside the declared outputs and reports it.
 The child exits if the parent dies (Linux ``PR_SET_PDEATHSIG``). Cost: one ``fork``, a few
 milliseconds.
 """
@@ -24,6 +25,9 @@ from pathlib import Path
 from geoshape.parallel import die_with_parent
 
 __all__ = ["can_isolate", "run_isolated"]
+
+#: Signals the parent passes on to the child (which runs in its own process group).
+_FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def can_isolate() -> bool:
@@ -55,16 +59,29 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
     """
     sys.stdout.flush()
     sys.stderr.flush()
+    inherited = {sig: signal.getsignal(sig) for sig in _FORWARDED}
+    signal.pthread_sigmask(signal.SIG_BLOCK, _FORWARDED)  # no signal lost between fork and handlers
     parent = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child: do the work, never return into the caller's stack
         code = 1
         try:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            # its own process group: a terminal's Ctrl-C reaches it once, forwarded by the parent
+            with contextlib.suppress(OSError):
+                os.setpgid(0, 0)
+            for sig, handler in inherited.items():
+                if sig == signal.SIGINT and handler is not signal.SIG_IGN:
+                    handler = signal.default_int_handler
+                signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _FORWARDED)
             die_with_parent(parent)
             code = int(work() or 0)
-        except SystemExit as stop:
-            code = stop.code if isinstance(stop.code, int) else 1
+        except SystemExit as stop:  # as sys.exit: None is success, a message is printed
+            if stop.code is None or isinstance(stop.code, int):
+                code = stop.code or 0
+            else:
+                print(stop.code, file=sys.stderr)
+                code = 1
         except BaseException:
             import traceback
 
@@ -75,7 +92,15 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
                 sys.stdout.flush()
                 sys.stderr.flush()
             os._exit(code)
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def forward(sig, _frame):
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, sig)
+
+    for sig, handler in inherited.items():
+        if handler is not signal.SIG_IGN:  # e.g. nohup: an ignored signal stays ignored
+            signal.signal(sig, forward)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _FORWARDED)
     try:
         while True:
             try:
@@ -84,13 +109,17 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
             except InterruptedError:
                 continue
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in inherited.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
     if os.WIFSIGNALED(status):
         sig = os.WTERMSIG(status)
         _remove_temporaries(outputs)
         if sig == signal.SIGINT:
             print(f"geoshape {command}: interrupted", file=sys.stderr)
             return 130
+        if sig in (signal.SIGTERM, signal.SIGHUP):
+            print(f"geoshape {command}: terminated", file=sys.stderr)
+            return 128 + sig
         name = signal.Signals(sig).name if sig in signal.Signals._value2member_map_ else str(sig)
         shown = ", ".join(inputs) if inputs else "its inputs"
         print(f"geoshape {command}: error: native code crashed ({name}) while working on {shown}; "

@@ -36,6 +36,7 @@ import contextlib
 import hashlib
 import json
 import os
+import socket
 import sqlite3
 import time
 from dataclasses import dataclass, field
@@ -167,7 +168,8 @@ class ShapeIndex:
             raise DatasetError(f"{self.path}: folder {self.path.parent} does not exist")
         if self.path.is_dir():
             raise DatasetError(f"{self.path}: is a folder, not an index file")
-        self._created = not self.path.exists() or self.path.stat().st_size == 0
+        self._pre_existing = self.path.exists() and self.path.stat().st_size > 0
+        self._created = False  # set by _set_up when this object initialised the database
         try:
             self._conn = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None)
         except sqlite3.Error as exc:
@@ -206,11 +208,13 @@ class ShapeIndex:
                     f"{', '.join(tables) or 'none'}); refusing to write into it")
             if app_id == 0:
                 conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                self._created = True
             for statement in filter(str.strip, _SCHEMA.split(";")):
                 conn.execute(statement)
             conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
         except BaseException:
-            conn.execute("ROLLBACK")
+            self._created = False
+            _rollback(conn)
             raise
         conn.execute("COMMIT")
         conn.execute("PRAGMA journal_mode=WAL")
@@ -222,22 +226,28 @@ class ShapeIndex:
             self._conn.close()
 
     def _abandon(self) -> None:
-        """Close after a failed setup; a file this object created is removed again."""
+        """Close after a failed setup; a file that did not exist before and into which
+        nothing was written (e.g. a full disk) is removed again."""
         self.close()
-        if self._created:
+        if not self._pre_existing and self.path.exists() and self.path.stat().st_size == 0:
             for suffix in ("", "-wal", "-shm", "-journal"):
                 Path(str(self.path) + suffix).unlink(missing_ok=True)
 
     def _discard_if_new_and_empty(self) -> None:
-        """Close and delete the database file this object created, if it stores nothing."""
+        """Close and delete the database this object initialised, if it stores nothing and no
+        other process holds a claim in it (a concurrent add may be writing into it)."""
         if not self._created:
             return
         try:
-            empty = self.count() == 0
+            busy = self.count() > 0 or self._conn.execute(
+                "SELECT COUNT(*) FROM claims WHERE NOT (host = ? AND pid = ?)",
+                (socket.gethostname(), os.getpid())).fetchone()[0] > 0
         except sqlite3.Error:
-            empty = True
-        if empty:
-            self._abandon()
+            busy = True
+        if not busy:
+            self.close()
+            for suffix in ("", "-wal", "-shm", "-journal"):
+                Path(str(self.path) + suffix).unlink(missing_ok=True)
 
     def __enter__(self):
         return self
@@ -287,7 +297,7 @@ class ShapeIndex:
                     "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
                     "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
             except BaseException:
-                self._conn.execute("ROLLBACK")
+                _rollback(self._conn)
                 raise
             self._conn.execute("COMMIT")
         except sqlite3.Error as exc:  # a full disk, a read-only file: one clear line
@@ -320,7 +330,7 @@ class ShapeIndex:
                                        (*task, host, pid, now))
                     mine.add(task)
             except BaseException:
-                self._conn.execute("ROLLBACK")
+                _rollback(self._conn)
                 raise
             self._conn.execute("COMMIT")
         except sqlite3.Error as exc:
@@ -338,6 +348,25 @@ class ShapeIndex:
         except sqlite3.Error:
             pass  # stale claims of a dead process are ignored by the next add
 
+    def _describe(self, tasks, pkeys, affinity, seed, backend, n_jobs, client):
+        """Rows for ``(file, sha, descriptor)`` tasks on the runner, and the files that failed;
+        a file that failed one descriptor is stored for none (all or nothing per file)."""
+        from geoshape.parallel import run_map
+        from geoshape.retrieval.descriptors import get_descriptor
+        from geoshape.retrieval.meshes import describe_file
+
+        items = [(str(f), nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
+                 for f, _, nm in tasks]
+        results = run_map(describe_file, items, backend=backend, n_jobs=n_jobs, scheduler=client,
+                          progress=False, on_error="return")
+        rows, bad = [], {}
+        for (f, sha, nm), res in zip(tasks, results, strict=True):
+            if isinstance(res, BaseException):
+                bad.setdefault(str(f), str(res) if str(f) in str(res) else f"{f}: {res}")
+            else:
+                rows.append((f, nm, pkeys[nm], sha, res[0], res[1]))
+        return [r for r in rows if str(r[0]) not in bad], bad
+
     def prune(self) -> list[str]:
         """Delete the rows of files that no longer exist; return their paths."""
         paths = [r[0] for r in self._conn.execute("SELECT DISTINCT path FROM entries")]
@@ -345,7 +374,11 @@ class ShapeIndex:
         if gone:
             try:
                 self._conn.execute("BEGIN IMMEDIATE")
-                self._conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
+                try:
+                    self._conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
+                except BaseException:
+                    _rollback(self._conn)
+                    raise
                 self._conn.execute("COMMIT")
             except sqlite3.Error as exc:
                 raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
@@ -386,7 +419,6 @@ class ShapeIndex:
         """
         from geoshape.parallel import _dask_client, _resolve_backend, default_n_jobs
         from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
-        from geoshape.retrieval.meshes import describe_file
 
         t0 = time.perf_counter()
         names = list(dict.fromkeys(descriptors))
@@ -425,26 +457,13 @@ class ShapeIndex:
                 tasks = [(f, sha, nm) for f, sha, need in batch for nm in need]
                 keys = [(str(f), nm, pkeys[nm]) for f, _, nm in tasks]
                 mine = self._claim(keys, [sha for _, sha, _ in tasks])
-                report.claimed_elsewhere += len(keys) - len(mine)
-                tasks = [t for t, key in zip(tasks, keys, strict=True) if key in mine]
-                if not tasks:
-                    report.batches += 1
-                    continue
-                items = [(str(f), nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
-                         for f, _, nm in tasks]
-                from geoshape.parallel import run_map
-
-                results = run_map(describe_file, items, backend=backend, n_jobs=n_jobs,
-                                  scheduler=client, progress=False, on_error="return")
-                rows, bad = [], {}
-                for (f, sha, nm), res in zip(tasks, results, strict=True):
-                    if isinstance(res, BaseException):
-                        bad.setdefault(str(f), str(res) if str(f) in str(res) else f"{f}: {res}")
-                    else:
-                        rows.append((f, nm, pkeys[nm], sha, res[0], res[1]))
-                # A file that failed one descriptor is stored for none: all or nothing per file.
-                rows = [r for r in rows if str(r[0]) not in bad]
                 try:
+                    report.claimed_elsewhere += len(keys) - len(mine)
+                    tasks = [t for t, key in zip(tasks, keys, strict=True) if key in mine]
+                    if not tasks:
+                        report.batches += 1
+                        continue
+                    rows, bad = self._describe(tasks, pkeys, affinity, seed, backend, n_jobs, client)
                     self.insert_rows(rows)
                 finally:
                     self._release(mine)
@@ -617,7 +636,7 @@ def _nearest_first(d: np.ndarray, k: int) -> np.ndarray:
 def _claim_alive(host: str, pid: int, since: float, my_host: str, now: float) -> bool:
     """Is a claim still held? Same host: its process lives. Another host: younger than
     :data:`CLAIM_LIFETIME`."""
-    if host != my_host:
+    if host != my_host or now - since >= CLAIM_LIFETIME:  # old claims lapse (a pid may be reused)
         return now - since < CLAIM_LIFETIME
     try:
         os.kill(int(pid), 0)
@@ -629,3 +648,11 @@ def _claim_alive(host: str, pid: int, since: float, my_host: str, now: float) ->
         return Path(f"/proc/{int(pid)}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
     except (OSError, IndexError):
         return True
+
+
+def _rollback(conn: sqlite3.Connection) -> None:
+    """Roll back if a transaction is still open (SQLite may already have rolled back on a
+    full disk or an I/O error; a second ROLLBACK would hide that error)."""
+    if conn.in_transaction:
+        with contextlib.suppress(sqlite3.Error):
+            conn.execute("ROLLBACK")
