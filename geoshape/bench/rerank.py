@@ -1,9 +1,10 @@
 """``geoshape bench rerank``: database-level re-ranking on every 2D dev collection, its
 parameters cross-validated, each halved and doubled.
 
-Reads the all-pairs matrices saved by ``geoshape bench kimia99|tari1000 --matrix-dir DIR``
-(``DIR/<set>_<method>.npy``) and by ``geoshape retrieval2d FOLDER --matrix DIR/<set>_<method>.npy``
-for other collections (a collection is a folder with ``labels.csv``; see ``--sets``). For
+Reads the all-pairs matrices ``DIR/<set>_<method>.npy`` (as ``geoshape bench kimia99|tari1000
+--matrix-dir DIR`` saves them) and computes the missing ones: ``kimia99`` and ``tari1000`` from the
+benchmark data, ``generated`` from the seeded silhouette generator (6 classes × 12), and
+``<set>-<kind>`` as the ``geoshape gen perturb2d`` copy of a set (seed 0). For
 every (k, iterations) on a grid it scores the re-ranked matrix; the setting chosen is the one
 with the best *worst-case* mAP gain over the collections (so no collection decides alone),
 and the table shows it on each collection next to the pairwise score, plus the chosen
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 HELP = "2D re-ranking: each collection with and without, parameters cross-validated, sensitivity"
 
-DEFAULT_SETS = "kimia99=kimia99,tari1000=tari1000"
+DEFAULT_SETS = "kimia99,tari1000,generated,kimia99-mirror,kimia99-noise,kimia99-notch,kimia99-erode"
 K_GRID = (3, 4, 5, 7, 10, 14)
 T_GRID = (5, 10, 20, 40)
 
@@ -25,19 +26,49 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--sets",
         default=DEFAULT_SETS,
-        help="comma-separated NAME=FOLDER (FOLDER with labels.csv; a bare name is looked "
-        f"up in the benchmark data). Default {DEFAULT_SETS}",
+        help="comma-separated set names, or NAME=FOLDER for a folder with labels.csv "
+        f"(default {DEFAULT_SETS})",
     )
     parser.add_argument("--no-write", action="store_true", help="print only")
 
 
-def _folder(spec: str):
+def _folder(name: str, spec: str, work):
+    """The labelled folder of a set, generated under ``work`` when it is a derived set."""
     from pathlib import Path
 
     from geoshape.io.datasets import dataset_dir
 
-    p = Path(spec)
-    return p if p.is_dir() else dataset_dir(spec)
+    if spec and Path(spec).is_dir():
+        return Path(spec)
+    if name == "generated":
+        from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
+        folder = work / name
+        if not (folder / "labels.csv").is_file():
+            generate_silhouettes(folder, per_class=12, seed=0)
+        return folder
+    base, _, kind = name.rpartition("-")
+    if base and kind:
+        from geoshape_datasets_gen.perturb2d import perturb_collection
+
+        folder = work / name
+        if not (folder / "labels.csv").is_file():
+            perturb_collection(_folder(base, "", work), folder, kind, seed=0)
+        return folder
+    return dataset_dir(name)
+
+
+def _matrix(name: str, folder, path, method: str):
+    """The saved matrix of a set, computed (all pairs, local processes) and saved if missing."""
+    import numpy as np
+
+    from geoshape.contour.retrieval import retrieval_on_folder
+    from geoshape.io.atomic import save_npy_atomic
+
+    if not path.is_file():
+        print(f"[{name}] all pairs with {method} …")
+        save_npy_atomic(path, retrieval_on_folder(folder, method)["D"])
+    return np.load(path)
 
 
 def run(args) -> int:
@@ -47,19 +78,18 @@ def run(args) -> int:
     import numpy as np
 
     from geoshape.bench.results import markdown_table, update_results_section
-    from geoshape.errors import DatasetError
     from geoshape.io.datasets import read_labels
     from geoshape.metrics.retrieval import retrieval_metrics
     from geoshape.retrieval.rerank import RERANK_DEFAULTS, rerank
 
+    work = Path(args.matrix_dir)
+    work.mkdir(parents=True, exist_ok=True)
     sets = {}
     for item in args.sets.split(","):
-        name, _, folder = item.partition("=")
-        path = Path(args.matrix_dir) / f"{name}_{args.method}.npy"
-        if not path.is_file():
-            raise DatasetError(f"{path}: no matrix for set {name!r} (save it with --matrix-dir)")
-        labels = [it.label for it in read_labels(_folder(folder or name))]
-        sets[name] = (np.load(path), labels)
+        name, _, spec = item.strip().partition("=")
+        folder = _folder(name, spec, work)
+        labels = [it.label for it in read_labels(folder)]
+        sets[name] = (_matrix(name, folder, work / f"{name}_{args.method}.npy", args.method), labels)
 
     def score(D, labels):
         m = retrieval_metrics(D, labels)
@@ -121,8 +151,9 @@ def run(args) -> int:
     text = (
         "## 2D re-ranking (locally constrained diffusion)\n\n"
         f"Command: `geoshape bench rerank --matrix-dir DIR --sets {args.sets}` on the `{args.method}` "
-        "matrices (`geoshape bench kimia99|tari1000 --methods default --matrix-dir DIR`, "
-        "`geoshape retrieval2d FOLDER --matrix DIR/<set>_default.npy`). The grid is k ∈ "
+        "all-pairs matrices (computed into DIR when missing; `generated` is the seeded silhouette "
+        "generator, 6 classes × 12; `kimia99-KIND` is `geoshape gen perturb2d kimia99 --kind KIND "
+        "--seed 0`). The grid is k ∈ "
         f"{list(K_GRID)}, iterations ∈ {list(T_GRID)}; the best setting maximises the smallest mAP "
         "gain over the collections. Re-ranking 1400 × 1400 with the default: "
         f"{seconds:.2f} s (one process).\n\n" + table + "\n\nSensitivity of the library default "

@@ -117,7 +117,7 @@ class _SurfaceSolver:
     def __init__(self, V: np.ndarray, F: np.ndarray, method: str, t_coef: float, clip: bool = True):
         self.V, self.F, self.method, self.clip = V, F, method, clip
         self.n = len(V)
-        if method == "exact" and clip:  # raw mode scores meshes as given; it never runs exact
+        if method == "exact":
             problems = exact_geodesic_problems(V, F)
             if problems:
                 raise InvalidMeshError(

@@ -144,6 +144,11 @@ class GeodesicErrorEvaluator:
         remap = np.full(len(V), -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
         none = np.zeros(0, dtype=np.int64)
+        from geoshape.geometry.geodesics import exact_geodesic_problems
+
+        if exact_geodesic_problems(V[used], remap[faces]):  # MMP would corrupt memory: keep the bound
+            log.debug("patch %d-%d is not a clean manifold; keeping bound %r", s, t, bound)
+            return bound
         d = igl.exact_geodesic(
             np.ascontiguousarray(V[used]), remap[faces], np.array([remap[s]]), none,
             np.array([remap[t]]), none,
