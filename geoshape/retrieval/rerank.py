@@ -39,7 +39,7 @@ RERANK_METHODS = ("lcdp",)
 
 #: Default parameters per method, chosen by cross-validation across the 2D dev collections
 #: (``geoshape bench rerank``, which also shows each one halved and doubled).
-RERANK_DEFAULTS = {"lcdp": {"k": 3, "iterations": 5}}
+RERANK_DEFAULTS = {"lcdp": {"k": 4, "iterations": 5}}
 
 
 def check_rerank_method(method: str) -> str:
