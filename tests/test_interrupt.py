@@ -31,6 +31,15 @@ def _batch_folder(folder, n_pairs: int = 12):
     return len(m.vertices)
 
 
+def _start(argv: list[str], quiet: bool = False) -> subprocess.Popen:
+    """``geoshape ARGV`` in a new session (so a signal can go to its whole group, as a
+    terminal's Ctrl-C does)."""
+    out = subprocess.DEVNULL if quiet else subprocess.PIPE
+    return subprocess.Popen(
+        [sys.executable, "-m", "geoshape", *argv], stdout=out, stderr=out, text=True, start_new_session=True
+    )
+
+
 def _tree(pid: int) -> set[int]:
     family = _children(pid)
     for child in list(family):
@@ -60,23 +69,7 @@ def _alive(pids) -> list[int]:
 def test_ctrl_c_stops_correspond_batch_within_seconds(tmp_path):
     n = _batch_folder(tmp_path)
     out = tmp_path / "maps"
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "geoshape",
-            "correspond-batch",
-            str(tmp_path),
-            "--out-dir",
-            str(out),
-            "--jobs",
-            "2",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+    proc = _start(["correspond-batch", str(tmp_path), "--out-dir", str(out), "--jobs", "2"])
     deadline = time.time() + 120
     while time.time() < deadline and not (out.is_dir() and any(out.glob("*.txt"))):
         time.sleep(0.1)
@@ -102,21 +95,8 @@ def test_ctrl_c_stops_correspond_batch_within_seconds(tmp_path):
 @pytest.mark.slow
 def test_workers_die_with_a_killed_command(tmp_path):
     _batch_folder(tmp_path)
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "geoshape",
-            "correspond-batch",
-            str(tmp_path),
-            "--out-dir",
-            str(tmp_path / "maps"),
-            "--jobs",
-            "2",
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
+    proc = _start(
+        ["correspond-batch", str(tmp_path), "--out-dir", str(tmp_path / "maps"), "--jobs", "2"], quiet=True
     )
     deadline = time.time() + 120
     family: set[int] = set()
@@ -177,13 +157,7 @@ def test_ctrl_c_stops_descriptor_batches_and_index_add_resumes(tmp_path, command
             "2",
         ]
     )
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "geoshape", *argv],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+    proc = _start(argv)
     deadline = time.time() + 120  # wait for real progress: rows stored, or workers busy
     while time.time() < deadline and proc.poll() is None:
         if (db.exists() and len(_rows(db)) >= 2) if command == "index add" else len(_tree(proc.pid)) >= 3:

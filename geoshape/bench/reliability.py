@@ -263,158 +263,68 @@ def cases() -> list[Case]:
 
 
 def _input_cases(sil: str, meshes: str, a: str, b: str, m0: str, m1: str) -> list[Case]:
-    """Defective meshes, native crashes, out-of-range options, wrong kinds of input."""
-    defects = "{in}/defects"
-    out = [
-        Case(
-            "mesh defect → exact geodesics",
-            f"embed {name}.off --geodesics exact",
-            ("embed", f"{defects}/{name}.off", "-o", "{out}/e.ply", "--geodesics", "exact"),
-            clean=("{out}",),
-        )
-        for name in ("duplicate_faces", "repeated_vertex", "nonmanifold_edge", "zero_area_face")
-    ]
+    """Defective meshes, native crashes, out-of-range options, wrong inputs, batches, full disks.
+
+    Each row: (group, name, argv, folders that must stay clean, mount needed, expected exits).
+    """
+    defects, out, ro, full = "{in}/defects", ("{out}",), "{ro}", "{full}"
+    emb = ("embed", m0, "-o", "{out}/e.ply")
+    batch = ("correspond-batch", "{in}/pairs", "--pairs")
     ok = frozenset({0})
-    out += [
-        Case(
-            "mesh defect, handled",
-            "correspond zero_area_face.off m1.off",
-            ("correspond", f"{defects}/zero_area_face.off", m1, "-o", "{out}/map.txt"),
-            expect=ok,
-        ),
-        Case(
-            "mesh defect, handled",
-            "embed coincident_vertices.off --geodesics heat",
-            ("embed", f"{defects}/coincident_vertices.off", "-o", "{out}/e.ply", "--geodesics", "heat"),
-            expect=ok,
-        ),
-        Case(
-            "native crash",
-            "run: PyMeshLab decimation to -5 faces (SIGBUS inside PyMeshLab)",
-            ("run", "-i", m0, "-s", "{in}/negative.mlx", "-o", "{out}/out.ply"),
-            clean=("{out}",),
-        ),
-        Case(
-            "option out of range",
-            "embed --seed -1",
-            ("embed", m0, "-o", "{out}/e.ply", "--seed", "-1"),
-            clean=("{out}",),
-        ),
-        Case(
-            "option out of range",
-            "embed --sigma 1e-300",
-            ("embed", m0, "-o", "{out}/e.ply", "--sigma", "1e-300"),
-            clean=("{out}",),
-        ),
-        Case("option out of range", "match2d --n-points 100000", ("match2d", a, b, "--n-points", "100000")),
-        Case(
-            "option out of range",
-            "retrieval2d --n-jobs 0",
-            ("retrieval2d", sil, "--matrix", "{out}/D.npy", "--n-jobs", "0"),
-            clean=("{out}",),
-        ),
-        Case(
-            "option out of range",
-            "retrieval3d --rerank-k 0",
-            ("retrieval3d", meshes, "--descriptor", "d2", "--matrix", "{out}/D.npy", "--rerank-k", "0"),
-            clean=("{out}",),
-        ),
-        Case(
-            "option out of range",
-            "index query --rerank-k -1",
-            ("index", "query", "{in}/index.db", m0, "--rerank-k", "-1"),
-        ),
-        Case(
-            "option out of range",
-            "embed --dims 200 on a 162-vertex mesh",
-            ("embed", m0, "-o", "{out}/e.ply", "--dims", "200"),
-            clean=("{out}",),
-        ),
-        Case(
-            "native crash avoided",
-            "run: exact-geodesic filter on a mesh with duplicate faces",
-            (
-                "run",
-                "-i",
-                f"{defects}/duplicate_faces.off",
-                "-s",
-                "{in}/exact_geodesics.mlx",
-                "-o",
-                "{out}/o.ply",
-            ),
-            clean=("{out}",),
-        ),
-        Case(
-            "batch",
-            "correspond-batch: two pairs would write one map",
-            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{out}/maps"),
-            clean=("{out}",),
-        ),
-        Case(
-            "batch",
-            "correspond-batch: a one-column row in pairs.csv",
-            ("correspond-batch", "{in}/pairs", "--pairs", "one_column.csv", "--out-dir", "{out}/maps"),
-            clean=("{out}",),
-        ),
-        Case(
-            "batch",
-            "correspond-batch --out-dir is a file",
-            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{in}/script.mlx"),
-        ),
-        Case(
-            "batch",
-            "correspond-batch --out-dir in a read-only folder",
-            ("correspond-batch", "{in}/pairs", "--pairs", "colliding.csv", "--out-dir", "{ro}/maps"),
-            clean=("{ro}",),
-            needs="ro",
-        ),
-        Case(
-            "gen",
-            "gen decimate --out in a read-only folder",
-            ("gen", "decimate", m0, "--ratios", "0.5", "--out", "{ro}/ladder"),
-            clean=("{ro}",),
-            needs="ro",
-        ),
-        Case(
-            "gen",
-            "run --save-script into a read-only folder",
-            ("run", "-i", m0, "-s", "{in}/script.mlx", "-o", "{out}/o.ply", "--save-script", "{ro}/used.mlx"),
-            clean=("{out}", "{ro}"),
-            needs="ro",
-        ),
-        Case(
-            "full disk",
-            "embed on a full disk",
-            ("embed", m0, "-o", "{full}/e.ply"),
-            clean=("{full}",),
-            needs="full",
-        ),
-        Case(
-            "full disk",
-            "index add into a database on a full disk",
-            ("index", "add", "{full}/idx.db", meshes, "--descriptor", "d2", "--backend", "serial"),
-            clean=("{full}",),
-            needs="full",
-        ),
-        Case(
-            "labels",
-            "retrieval2d: a labels.csv row without a label",
-            ("retrieval2d", "{in}/sil_unlabelled", "--matrix", "{out}/D.npy"),
-            clean=("{out}",),
-        ),
-        Case(
-            "wrong kind of input",
-            "correspond DIR m1.off",
-            ("correspond", meshes, m1, "-o", "{out}/map.txt"),
-            clean=("{out}",),
-        ),
-        Case(
-            "wrong kind of input",
-            "index add into a file that is not an index",
-            ("index", "add", "{in}/script.mlx", meshes, "--descriptor", "d2"),
-        ),
+    rows = [
+        *[("mesh defect → exact geodesics", f"embed {name}.off --geodesics exact",
+           ("embed", f"{defects}/{name}.off", "-o", "{out}/e.ply", "--geodesics", "exact"), out, None, None)
+          for name in ("duplicate_faces", "repeated_vertex", "nonmanifold_edge", "zero_area_face")],
+        ("mesh defect, handled", "correspond zero_area_face.off m1.off",
+         ("correspond", f"{defects}/zero_area_face.off", m1, "-o", "{out}/map.txt"), (), None, ok),
+        ("mesh defect, handled", "embed coincident_vertices.off --geodesics heat",
+         ("embed", f"{defects}/coincident_vertices.off", "-o", "{out}/e.ply", "--geodesics", "heat"),
+         (), None, ok),
+        ("native crash", "run: PyMeshLab decimation to -5 faces (SIGBUS inside PyMeshLab)",
+         ("run", "-i", m0, "-s", "{in}/negative.mlx", "-o", "{out}/out.ply"), out, None, None),
+        ("native crash avoided", "run: exact-geodesic filter on a mesh with duplicate faces",
+         ("run", "-i", f"{defects}/duplicate_faces.off", "-s", "{in}/exact_geodesics.mlx",
+          "-o", "{out}/o.ply"),
+         out, None, None),
+        ("option out of range", "embed --seed -1", (*emb, "--seed", "-1"), out, None, None),
+        ("option out of range", "embed --sigma 1e-300", (*emb, "--sigma", "1e-300"), out, None, None),
+        ("option out of range", "embed --dims 200 on a 162-vertex mesh", (*emb, "--dims", "200"), out,
+         None, None),
+        ("option out of range", "match2d --n-points 100000", ("match2d", a, b, "--n-points", "100000"),
+         (), None, None),
+        ("option out of range", "retrieval2d --n-jobs 0",
+         ("retrieval2d", sil, "--matrix", "{out}/D.npy", "--n-jobs", "0"), out, None, None),
+        ("option out of range", "retrieval3d --rerank-k 0",
+         ("retrieval3d", meshes, "--descriptor", "d2", "--matrix", "{out}/D.npy", "--rerank-k", "0"),
+         out, None, None),
+        ("option out of range", "index query --rerank-k -1",
+         ("index", "query", "{in}/index.db", m0, "--rerank-k", "-1"), (), None, None),
+        ("wrong kind of input", "correspond DIR m1.off", ("correspond", meshes, m1, "-o", "{out}/map.txt"),
+         out, None, None),
+        ("wrong kind of input", "index add into a file that is not an index",
+         ("index", "add", "{in}/script.mlx", meshes, "--descriptor", "d2"), (), None, None),
+        ("labels", "retrieval2d: a labels.csv row without a label",
+         ("retrieval2d", "{in}/sil_unlabelled", "--matrix", "{out}/D.npy"), out, None, None),
+        ("batch", "correspond-batch: two pairs would write one map",
+         (*batch, "colliding.csv", "--out-dir", "{out}/maps"), out, None, None),
+        ("batch", "correspond-batch: a one-column row in pairs.csv",
+         (*batch, "one_column.csv", "--out-dir", "{out}/maps"), out, None, None),
+        ("batch", "correspond-batch --out-dir is a file",
+         (*batch, "colliding.csv", "--out-dir", "{in}/script.mlx"), (), None, None),
+        ("batch", "correspond-batch --out-dir in a read-only folder",
+         (*batch, "colliding.csv", "--out-dir", f"{ro}/maps"), (ro,), "ro", None),
+        ("gen", "gen decimate --out in a read-only folder",
+         ("gen", "decimate", m0, "--ratios", "0.5", "--out", f"{ro}/ladder"), (ro,), "ro", None),
+        ("gen", "run --save-script into a read-only folder",
+         ("run", "-i", m0, "-s", "{in}/script.mlx", "-o", "{out}/o.ply", "--save-script", f"{ro}/used.mlx"),
+         ("{out}", ro), "ro", None),
+        ("full disk", "embed on a full disk", ("embed", m0, "-o", f"{full}/e.ply"), (full,), "full", None),
+        ("full disk", "index add into a database on a full disk",
+         ("index", "add", f"{full}/idx.db", meshes, "--descriptor", "d2", "--backend", "serial"),
+         (full,), "full", None),
     ]
-    return out
+    return [Case(group, name, argv, expect=expect or frozenset({2}), clean=clean, needs=needs)
+            for group, name, argv, clean, needs, expect in rows]
 
 
 @contextlib.contextmanager

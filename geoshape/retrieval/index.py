@@ -290,17 +290,24 @@ class ShapeIndex:
                   for p, d, pk, sha, a, s in rows]
         if not packed:
             return
+        with self._writing():
+            self._conn.executemany(
+                "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
+                "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
+
+    @contextlib.contextmanager
+    def _writing(self):
+        """One write transaction (``BEGIN IMMEDIATE`` … ``COMMIT``, rolled back on any error);
+        an SQLite error — a full disk, a read-only file — becomes one DatasetError line."""
         try:
             self._conn.execute("BEGIN IMMEDIATE")
             try:
-                self._conn.executemany(
-                    "INSERT OR REPLACE INTO entries (path, descriptor, params, sha256, shape, data, "
-                    "seconds, added) VALUES (?, ?, ?, ?, ?, ?, ?, ?)", packed)
+                yield self._conn
             except BaseException:
                 _rollback(self._conn)
                 raise
             self._conn.execute("COMMIT")
-        except sqlite3.Error as exc:  # a full disk, a read-only file: one clear line
+        except sqlite3.Error as exc:
             raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
 
     # -- claims (concurrent adds) --------------------------------------------------------
@@ -308,38 +315,24 @@ class ShapeIndex:
         """Claim ``(path, descriptor, params)`` rows that are neither stored with the same
         content hash ``shas`` nor claimed by a live process; return the ones this process may
         compute. One transaction, so two adds never both win."""
-        import socket
-
         host, pid, now = socket.gethostname(), os.getpid(), time.time()
         mine = set()
-        try:
-            self._conn.execute("BEGIN IMMEDIATE")
-            try:
-                for task, sha in zip(tasks, shas, strict=True):
-                    stored = self._conn.execute(
-                        "SELECT sha256 FROM entries WHERE path = ? AND descriptor = ? AND params = ?",
-                        task).fetchone()
-                    if stored is not None and stored[0] == sha:  # another add finished it
-                        continue
-                    row = self._conn.execute(
-                        "SELECT host, pid, since FROM claims "
-                        "WHERE path = ? AND descriptor = ? AND params = ?", task).fetchone()
-                    if row is not None and (row[0], row[1]) != (host, pid) and _claim_alive(*row, host, now):
-                        continue
-                    self._conn.execute("INSERT OR REPLACE INTO claims VALUES (?, ?, ?, ?, ?, ?)",
-                                       (*task, host, pid, now))
-                    mine.add(task)
-            except BaseException:
-                _rollback(self._conn)
-                raise
-            self._conn.execute("COMMIT")
-        except sqlite3.Error as exc:
-            raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
+        with self._writing() as conn:
+            for task, sha in zip(tasks, shas, strict=True):
+                stored = conn.execute("SELECT sha256 FROM entries "
+                                      "WHERE path = ? AND descriptor = ? AND params = ?", task).fetchone()
+                if stored is not None and stored[0] == sha:  # another add finished it
+                    continue
+                row = conn.execute("SELECT host, pid, since FROM claims "
+                                   "WHERE path = ? AND descriptor = ? AND params = ?", task).fetchone()
+                if row is not None and (row[0], row[1]) != (host, pid) and _claim_alive(*row, host, now):
+                    continue
+                conn.execute("INSERT OR REPLACE INTO claims VALUES (?, ?, ?, ?, ?, ?)",
+                             (*task, host, pid, now))
+                mine.add(task)
         return mine
 
     def _release(self, tasks) -> None:
-        import socket
-
         host, pid = socket.gethostname(), os.getpid()
         try:
             self._conn.executemany(
@@ -372,16 +365,8 @@ class ShapeIndex:
         paths = [r[0] for r in self._conn.execute("SELECT DISTINCT path FROM entries")]
         gone = [p for p in paths if not Path(p).is_file()]
         if gone:
-            try:
-                self._conn.execute("BEGIN IMMEDIATE")
-                try:
-                    self._conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
-                except BaseException:
-                    _rollback(self._conn)
-                    raise
-                self._conn.execute("COMMIT")
-            except sqlite3.Error as exc:
-                raise DatasetError(f"{self.path}: cannot write to the index: {exc}") from None
+            with self._writing() as conn:
+                conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
             self._cache.clear()
         return gone
 
