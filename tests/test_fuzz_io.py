@@ -263,7 +263,7 @@ def _forged_header(draw, fmt: str) -> bytes:
     return b"\x89PNG\r\n\x1a\n" + chunks
 
 
-@pytest.mark.parametrize("suffix, fmt", [(".png", "PNG"), (".pgm", "PPM")])
+@pytest.mark.parametrize("suffix, fmt", [(".png", "PNG"), (".pgm", "PPM"), (".jpg", "JPEG")])
 @settings(FUZZ)
 @given(data=st.data())
 def test_load_silhouette_on_random_bytes_loads_or_raises_invalid_image(worker, fuzz_dir, suffix, fmt, data):

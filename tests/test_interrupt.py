@@ -128,35 +128,19 @@ def _mesh_folder(folder, n: int = 40):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("command", ["index add", "retrieval3d"])
+@pytest.mark.parametrize("command", ["index add", "retrieval3d", "retrieval2d"])
 def test_ctrl_c_stops_descriptor_batches_and_index_add_resumes(tmp_path, command):
-    _mesh_folder(tmp_path / "m")
     db, matrix = tmp_path / "idx.db", tmp_path / "D.npy"
-    argv = (
-        [
-            "index",
-            "add",
-            str(db),
-            str(tmp_path / "m"),
-            "--descriptor",
-            "shd",
-            "--jobs",
-            "2",
-            "--batch-size",
-            "4",
-        ]
-        if command == "index add"
-        else [
-            "retrieval3d",
-            str(tmp_path / "m"),
-            "--descriptor",
-            "shd",
-            "--matrix",
-            str(matrix),
-            "--jobs",
-            "2",
-        ]
-    )
+    if command == "retrieval2d":
+        from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
+        generate_silhouettes(tmp_path / "s", per_class=25, seed=0)  # 150 shapes, ~11k pairs
+        argv = ["retrieval2d", str(tmp_path / "s"), "--matrix", str(matrix), "--n-jobs", "2"]
+    else:
+        _mesh_folder(tmp_path / "m")
+        argv = {"index add": ["index", "add", str(db), str(tmp_path / "m"), "--batch-size", "4"],
+                "retrieval3d": ["retrieval3d", str(tmp_path / "m"), "--matrix", str(matrix)]}[command]
+        argv += ["--descriptor", "shd", "--jobs", "2"]
     proc = _start(argv)
     deadline = time.time() + 120  # wait for real progress: rows stored, or workers busy
     while time.time() < deadline and proc.poll() is None:
