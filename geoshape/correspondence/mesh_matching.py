@@ -154,9 +154,13 @@ class PreparedMesh:
 
 
 def _prepared(mesh_or_V, F, name) -> PreparedMesh:
+    """A :class:`PreparedMesh` from one, from ``(V, F)`` arrays, or from a mesh object
+    (trimesh, Open3D, pymeshlab; vertex order kept) through the one boundary helper."""
     if isinstance(mesh_or_V, PreparedMesh):
         return mesh_or_V
-    return PreparedMesh(mesh_or_V, F, name=name)
+    from geoshape.io.interop import as_arrays
+
+    return PreparedMesh(*as_arrays(mesh_or_V, F, name=name), name=name)
 
 
 def bijective_assignment(A: np.ndarray, B: np.ndarray, *, n_candidates: int = 16,
@@ -485,8 +489,11 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
 
     Parameters
     ----------
-    V1, F1, V2, F2 : arrays ``(n, 3)``, ``(m, 3)``; or pass :class:`PreparedMesh` objects
-        as ``V1`` and ``V2`` (with ``F1 = F2 = None``) to reuse per-mesh precomputations.
+    V1, F1, V2, F2 : arrays ``(n, 3)``, ``(m, 3)``; or two mesh objects,
+        ``correspond(mesh_1, mesh_2)`` — :class:`PreparedMesh` (to reuse per-mesh
+        precomputations), ``trimesh.Trimesh``, Open3D ``TriangleMesh``, pymeshlab ``Mesh`` or a
+        ``(V, F)`` pair; objects are converted by :func:`geoshape.io.interop.as_arrays`, vertex
+        order kept, so ``p2p_12`` indexes the objects' own vertices.
     method : str
         One of :data:`CORRESPONDENCE_METHODS`.
     **options
@@ -530,6 +537,10 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
         check_choice("eigenvector scaling", options["scaling"], SCALINGS)
     if "reorder" in options:
         check_choice("reordering method", options["reorder"], REORDER_METHODS)
+    from geoshape.io.interop import is_mesh_object
+
+    if V2 is None and F2 is None and F1 is not None and (isinstance(F1, PreparedMesh) or is_mesh_object(F1)):
+        V2, F1 = F1, None  # correspond(mesh_1, mesh_2) with two mesh objects
     m1 = _prepared(V1, F1, names[0])
     m2 = _prepared(V2, F2, names[1])
     from geoshape import parallel

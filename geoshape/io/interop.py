@@ -30,6 +30,11 @@ def _kind(obj) -> str:
     return "unknown"
 
 
+def is_mesh_object(obj) -> bool:
+    """True for a mesh given as one object: a ``(V, F)`` pair or a trimesh / Open3D / pymeshlab mesh."""
+    return _kind(obj) != "unknown"
+
+
 def as_arrays(mesh, F=None, *, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     """``(V, F)`` arrays from arrays or a mesh object of trimesh, Open3D or pymeshlab.
 

@@ -215,7 +215,7 @@ def embedding_from_affinity(A: np.ndarray, k: int = 5, *, scaling: str = "sqrt",
     return SpectralEmbedding(scale_eigenvectors(U, lam, scaling), lam, params)
 
 
-def spectral_embedding(V, F, k: int = 5, *, method: str = "auto",
+def spectral_embedding(V, F=None, k: int = 5, *, method: str = "auto",
                        n_samples: int | None = None, affinity: str = "geodesic",
                        sigma="max", geodesics: str = "graph", scaling: str = "sqrt",
                        first: str = "drop", orthogonalize: bool = True, p: int = 1,
@@ -224,7 +224,9 @@ def spectral_embedding(V, F, k: int = 5, *, method: str = "auto",
 
     Parameters
     ----------
-    V : (n, 3) float
+    V : (n, 3) float, or one mesh object
+        With ``F`` omitted: a ``trimesh.Trimesh``, Open3D ``TriangleMesh``, pymeshlab
+        ``Mesh`` or ``(V, F)`` pair (:func:`geoshape.io.interop.as_arrays`, vertex order kept).
     F : (m, 3) int
         May be a soup or have several parts (the structural graph bridges them); may be
         empty (point cloud) with ``geodesics="graph"``.
@@ -287,6 +289,10 @@ def spectral_embedding(V, F, k: int = 5, *, method: str = "auto",
 
     check_choice("geodesics", geodesics, GEODESIC_METHODS)
     sigma = parse_sigma(sigma)
+    if F is None:  # one mesh object (trimesh, Open3D, pymeshlab) or a (V, F) pair
+        from geoshape.io.interop import as_arrays
+
+        V, F = as_arrays(V)
     V, F = check_mesh(V, F, allow_no_faces=True)
     n = len(V)
     m = _check_k(k, n, first)
