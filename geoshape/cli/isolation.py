@@ -69,6 +69,9 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
             # its own process group: a terminal's Ctrl-C reaches it once, forwarded by the parent
             with contextlib.suppress(OSError):
                 os.setpgid(0, 0)
+            # a background group must still write to the terminal (progress bars), even
+            # where the terminal stops background writers (stty tostop)
+            signal.signal(signal.SIGTTOU, signal.SIG_IGN)
             for sig, handler in inherited.items():
                 if sig == signal.SIGINT and handler is not signal.SIG_IGN:
                     handler = signal.default_int_handler
