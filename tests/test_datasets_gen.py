@@ -373,3 +373,26 @@ def test_cli_articulated(tmp_path):
 
 def test_errors_are_geoshape_errors():
     assert issubclass(InvalidOptionError, GeoshapeError)
+
+
+def test_fast_simplification_backend_maps_every_original_vertex_nearby(tmp_path):
+    """The collapse map sends each original vertex to a decimated vertex close to it (the
+    collapses are local), reaches every decimated vertex, and the CLI writes it as .map."""
+    from geoshape_datasets_gen.decimate import decimate_fast
+
+    from geoshape.__main__ import main
+    from geoshape.io.mesh_io import load_mesh, save_mesh
+
+    V, F = icosphere(4)
+    col = decimate_fast(V, F, 0.25)
+    assert abs(col.fraction - 0.25) < 0.02
+    assert col.collapsed_to.shape == (len(V),) and set(np.unique(col.collapsed_to)) == set(range(len(col.V)))
+    edge = np.mean(np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1))
+    assert np.max(np.linalg.norm(V - col.V[col.collapsed_to], axis=1)) < 4 * edge
+    assert decimate_fast(V, F, 1.0).collapsed_to.tolist() == list(range(len(V)))
+    src = save_mesh(tmp_path / "ball.off", V, F)
+    assert main(["gen", "decimate", str(src), "--ratios", "0.5", "--backend", "fast-simplification",
+                 "--out", str(tmp_path / "out")]) == 0
+    Vd, _ = load_mesh(tmp_path / "out" / "ball_050.off")
+    mapping = np.loadtxt(tmp_path / "out" / "ball_050.map", dtype=np.int64)
+    assert mapping.shape == (len(V),) and mapping.max() == len(Vd) - 1

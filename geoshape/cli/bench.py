@@ -29,6 +29,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("knn", "geoshape.bench.knn"),
     ("reliability", "geoshape.bench.reliability"),
     ("rerank", "geoshape.bench.rerank"),
+    ("decimate", "geoshape.bench.decimate"),
 ]
 
 

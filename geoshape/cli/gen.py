@@ -49,6 +49,10 @@ def register(subparsers) -> None:
                    help="allow collapses that move boundary vertices")
     d.add_argument("--no-preserve-topology", action="store_true",
                    help="allow collapses that change genus (may create non-manifold output)")
+    d.add_argument("--backend", default="pymeshlab",
+                   help="pymeshlab (default: kept vertices stay in place, DIR/<stem>_<pct>.ids) or "
+                   "fast-simplification (faster on large meshes; vertices move, DIR/<stem>_<pct>.map "
+                   "gives for each original vertex the decimated vertex it collapsed into)")
     d.set_defaults(handler=run_decimate)
     declare_outputs(d, all_or_nothing=False, out="folder")
 
@@ -156,17 +160,26 @@ def decimation_names(stem: str, ratios) -> list[str]:
 def run_decimate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from geoshape_datasets_gen.decimate import check_ratio, decimate_exact
+    from geoshape_datasets_gen.decimate import DECIMATION_BACKENDS, check_ratio, decimate_exact, decimate_fast
 
+    from geoshape._options import check_choice
     from geoshape.io.atomic import write_text_atomic
     from geoshape.io.datasets import mesh_stem
     from geoshape.io.mesh_io import load_mesh, save_mesh
 
+    check_choice("decimation backend", args.backend, DECIMATION_BACKENDS)
     ratios = [check_ratio(r) for r in _floats("--ratios", args.ratios)]
     names = decimation_names(mesh_stem(args.mesh), ratios)
     V, F = load_mesh(args.mesh)
     out = Path(args.out)
     for ratio, name in zip(ratios, names, strict=True):
+        if args.backend == "fast-simplification":
+            col = decimate_fast(V, F, ratio)
+            save_mesh(out / f"{name}.off", col.V, col.F)
+            write_text_atomic(out / f"{name}.map", "".join(f"{i}\n" for i in col.collapsed_to.tolist()))
+            print(f"{out / (name + '.off')}: {len(col.V)} of {len(V)} vertices (asked {ratio:.3g}, got "
+                  f"{col.fraction:.4f}), {len(col.F)} faces; {name}.map: original vertex -> decimated vertex")
+            continue
         dec = decimate_exact(
             V, F, ratio,
             preserve_boundary=not args.no_preserve_boundary,
