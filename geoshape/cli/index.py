@@ -1,4 +1,4 @@
-"""``geoshape index add|query|info DB …``: a persistent, resumable index of shape descriptors.
+"""``geoshape index add|query|prune|info DB …``: a persistent, resumable index of shape descriptors.
 
 ``add`` describes mesh files (or folders of them) on the parallel runner and commits each
 batch in one SQLite transaction; unchanged files (same path, content hash, descriptor and
@@ -19,7 +19,8 @@ def register(subparsers) -> None:
         help="persistent index of shape descriptors (SQLite): add meshes, query a mesh",
         description="A resumable SQLite index of 3D shape descriptors. 'add' computes and "
         "stores descriptors (unchanged files skipped), 'query' ranks stored shapes against "
-        "a mesh, 'info' lists what is stored.",
+        "a mesh (files deleted since are never returned), 'prune' deletes the rows of missing "
+        "files, 'info' lists what is stored.",
     )
     sub = p.add_subparsers(dest="index_command", metavar="ACTION")
 
