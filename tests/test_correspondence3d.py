@@ -141,19 +141,19 @@ def test_orientation_tells_a_map_from_its_mirror():
 
 
 def test_patch_orientation_on_samples_tells_a_map_from_its_mirror():
-    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
     V, _, F = figure()
     mirrored = V * [-1, 1, 1]
     rng = np.random.default_rng(0)
     noisy = np.arange(len(V))
     noisy[rng.choice(len(V), len(V) // 10, replace=False)] = rng.integers(len(V), size=len(V) // 10)
-    for rows in (None, embedding_samples(V, 200)):
+    for rows in (None, euclidean_farthest_point_sampling(V, 200)):
         p2p = noisy if rows is None else noisy[rows]
         assert patch_orientation_score(V, F, V, F, p2p, rows1=rows) > 0.6
         assert patch_orientation_score(V, F, mirrored, F[:, ::-1], p2p, rows1=rows) < -0.6
     with pytest.raises(InvalidOptionError, match="200 points"):
-        patch_orientation_score(V, F, V, F, noisy, rows1=embedding_samples(V, 200))
+        patch_orientation_score(V, F, V, F, noisy, rows1=euclidean_farthest_point_sampling(V, 200))
 
 
 @pytest.mark.slow

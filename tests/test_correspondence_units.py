@@ -79,10 +79,10 @@ def test_zoomout_recovers_an_isometry_from_a_rough_map():
 
 def test_zoomout_on_samples_recovers_an_isometry():
     from geoshape.correspondence.fmaps.zoomout import zoomout
-    from geoshape.correspondence.reorder import embedding_samples
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
     V, V2, truth, b1, b2 = zoomout_setup()
-    s1, s2 = embedding_samples(V, 300), embedding_samples(V2, 300)
+    s1, s2 = euclidean_farthest_point_sampling(V, 300), euclidean_farthest_point_sampling(V2, 300)
     p2p = zoomout(b1, b2, neighbour_map(V, truth), k_start=6, k_end=40, step=2, samples1=s1, samples2=s2)
     assert np.mean(p2p == truth) >= 0.95  # measured: 99 % exact
 

@@ -23,13 +23,8 @@ from geoshape.geometry.geodesics import (
     all_pairs_geodesics,
     geodesic_distances,
 )
-from geoshape.geometry.graph import (
-    bridging_edges,
-    edge_graph,
-    mesh_components,
-    mesh_edges,
-    structural_graph,
-)
+from geoshape.geometry.graph import bridging_edges, structural_graph
+from geoshape.geometry.mesh import edge_graph, unique_edges, vertex_components
 from geoshape.geometry.sampling import farthest_point_sampling, geodesic_voronoi_sampling
 
 TOL = {  # method: (max relative, mean relative)
@@ -86,9 +81,9 @@ def _soup(V, F):
 
 
 def test_mesh_edges_and_components():
-    E = mesh_edges(np.array([[0, 1, 2], [2, 1, 3], [0, 0, 1]]))
+    E = unique_edges(np.array([[0, 1, 2], [2, 1, 3], [0, 0, 1]]))
     assert E.tolist() == [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]
-    n_comp, labels = mesh_components(5, np.array([[0, 1, 2]]))
+    n_comp, labels = vertex_components(5, np.array([[0, 1, 2]]))
     assert n_comp == 3 and labels[0] == labels[1] == labels[2] != labels[3] != labels[4]
     assert edge_graph([[0, 0, 0], [3, 4, 0], [0, 1, 0]], [[0, 1, 2]])[0, 1] == pytest.approx(5.0)
 
@@ -104,12 +99,12 @@ def test_structural_graph_connected_mesh_adds_nothing():
 def test_structural_graph_two_parts_only_bridges(p):
     V, F = _two_parts()
     B = bridging_edges(V, F, p)
-    _, labels = mesh_components(len(V), F)
+    _, labels = vertex_components(len(V), F)
     assert len(B) >= 1 and np.all(labels[B[:, 0]] != labels[B[:, 1]])
     G = structural_graph(V, F, p)
     assert connected_components(G)[0] == 1
     # all mesh edges kept, the only extra edges are the bridges
-    mesh = set(map(tuple, mesh_edges(F)))
+    mesh = set(map(tuple, unique_edges(F)))
     r, c = G.nonzero()
     extra = {(a, b) for a, b in zip(r.tolist(), c.tolist(), strict=True) if a < b} - mesh
     assert extra == set(map(tuple, B.tolist()))
@@ -120,13 +115,13 @@ def test_structural_graph_two_parts_only_bridges(p):
 @pytest.mark.parametrize("p", [1, 2])
 def test_structural_graph_triangle_soup(p):
     V, F = _soup(*icosphere(1))
-    n_comp, labels = mesh_components(len(V), F)
+    n_comp, labels = vertex_components(len(V), F)
     assert n_comp == len(F)
     G = structural_graph(V, F, p)
     assert connected_components(G)[0] == 1
     B = bridging_edges(V, F, p)
     assert np.all(labels[B[:, 0]] != labels[B[:, 1]])
-    assert G.nnz == 2 * (len(mesh_edges(F)) + len(B))
+    assert G.nnz == 2 * (len(unique_edges(F)) + len(B))
     # coincident vertices of a soup are linked by (near) zero-length edges
     D = geodesic_distances(V, F, [0])
     assert np.isfinite(D).all()

@@ -214,7 +214,7 @@ def test_cli_bad_mesh_named_and_nothing_written(small_collection, tmp_path):
 @pytest.fixture(autouse=True)
 def _one_blas_thread():
     """Small dense eigenproblems: BLAS threads only spin on a shared machine."""
-    from geoshape.retrieval.meshes import single_thread_blas
+    from geoshape.parallel import single_thread_blas
 
     with single_thread_blas():
         yield

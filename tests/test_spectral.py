@@ -9,8 +9,9 @@ import pytest
 from conftest import grid_mesh, icosphere
 from scipy.linalg import subspace_angles
 
+from geoshape.distances import chi2_distance
 from geoshape.errors import GeoshapeError, InvalidMeshError, InvalidOptionError
-from geoshape.retrieval.descriptors.evd import chi2_distance, evd_descriptor, evd_distance_matrix
+from geoshape.retrieval.descriptors.evd import evd_descriptor, evd_distance_matrix
 from geoshape.spectral.affinity import gaussian_affinity, parse_sigma, resolve_sigma
 from geoshape.spectral.embedding import (
     embedding_from_affinity,

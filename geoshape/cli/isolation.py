@@ -35,20 +35,14 @@ def can_isolate() -> bool:
     return hasattr(os, "fork") and sys.platform != "win32"
 
 
-def _remove_temporaries(outputs: list[Path]) -> list[str]:
-    """Remove the ``.NAME.*.tmp*`` files :func:`geoshape.io.atomic.atomic_path` leaves when its
-    process dies, beside each output file and inside each output folder."""
-    removed = []
+def _remove_temporaries(outputs: list[Path]) -> None:
+    """Remove what a dead child's :func:`~geoshape.io.atomic.atomic_path` left beside each output."""
+    from geoshape.io.atomic import leftover_temporaries
+
     for out in outputs:
-        patterns = [(out.parent, f".{out.name}.*.tmp*")]
-        if out.is_dir():
-            patterns.append((out, ".*.tmp*"))
-        for folder, pattern in patterns:
-            for tmp in folder.glob(pattern):
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-                    removed.append(tmp.name)
-    return removed
+        for tmp in leftover_temporaries(out):
+            with contextlib.suppress(OSError):
+                tmp.unlink()
 
 
 def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], outputs: list[Path]) -> int:

@@ -27,9 +27,6 @@ from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
-#: the old name of the Euclidean farthest-point sampler, still importable from here
-embedding_samples = euclidean_farthest_point_sampling
-
 REORDER_METHODS = ("exhaustive", "greedy", "pairwise", "signs", "none")
 
 

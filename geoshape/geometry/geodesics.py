@@ -98,12 +98,11 @@ def exact_geodesic_problems(V: np.ndarray, F: np.ndarray) -> list[str]:
     >>> exact_geodesic_problems(np.eye(3), np.array([[0, 1, 2], [2, 1, 0]]))
     ['1 duplicate face']
     """
-    from geoshape.geometry.mesh import face_areas, unique_edges
+    from geoshape.geometry.mesh import degenerate_faces, duplicate_face_count, unique_edges
 
     F = np.asarray(F, dtype=np.int64)
-    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
-    degenerate = int(np.count_nonzero(repeated | ~(face_areas(V, F) > 0)))
-    duplicate = len(F) - len(np.unique(np.sort(F, axis=1), axis=0))
+    degenerate = int(np.count_nonzero(degenerate_faces(V, F)))
+    duplicate = duplicate_face_count(F)
     _, counts = unique_edges(F, len(V), return_counts=True)
     nonmanifold = int(np.count_nonzero(counts > 2))
     found = [(degenerate, "degenerate face"), (duplicate, "duplicate face"),

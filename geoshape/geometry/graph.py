@@ -25,32 +25,16 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
 
 from geoshape.errors import InvalidOptionError
-from geoshape.geometry.mesh import (
-    ZERO_LENGTH_EPS,
-    edge_graph,
-    edges_graph,
-    undirected_edges,
-    unique_edges,
-    vertex_components,
-)
+from geoshape.geometry.mesh import edges_graph, undirected_edges, unique_edges, vertex_components
 from geoshape.io.validate import check_mesh
 
 __all__ = [
-    "ZERO_LENGTH_EPS",
-    "mesh_edges",
-    "edge_graph",
-    "mesh_components",
     "emst_edges",
     "bridging_edges",
     "structural_graph",
 ]
 
 _KNN_CANDIDATES = 10
-
-# The mesh graph's primitives live in geometry/mesh.py; the old names stay importable here.
-mesh_edges = unique_edges
-mesh_components = vertex_components
-
 
 def _knn_candidates(V: np.ndarray, k: int) -> np.ndarray:
     from geoshape.geometry.knn import k_nearest

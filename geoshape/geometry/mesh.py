@@ -19,6 +19,8 @@ __all__ = [
     "face_normals",
     "face_areas",
     "vertex_areas",
+    "degenerate_faces",
+    "duplicate_face_count",
     "unique_edges",
     "undirected_edges",
     "vertex_components",
@@ -74,6 +76,25 @@ def vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """
     a = face_areas(V, F)
     return np.bincount(F.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(V))
+
+
+def degenerate_faces(V: np.ndarray, F: np.ndarray, *, area_eps: float = 0.0) -> np.ndarray:
+    """(m,) bool: faces that repeat a vertex, or whose area is at most ``area_eps × diag²``
+    (diag = bounding-box diagonal; ``area_eps = 0`` flags exactly zero areas). O(m).
+
+    >>> degenerate_faces(np.eye(3), np.array([[0, 1, 2], [0, 0, 1]])).tolist()
+    [False, True]
+    """
+    F = np.asarray(F, dtype=np.int64)
+    repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if len(V) else 0.0
+    return repeated | ~(face_areas(V, F) > area_eps * max(diag, 1e-300) ** 2)
+
+
+def duplicate_face_count(F: np.ndarray) -> int:
+    """Faces that repeat the vertex set of an earlier face (any order). O(m log m)."""
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    return len(F) - len(np.unique(np.sort(F, axis=1), axis=0))
 
 
 def undirected_edges(E: np.ndarray, n: int | None = None, *, return_counts: bool = False):

@@ -11,7 +11,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from geoshape.geometry.mesh import face_areas, unique_edges, vertex_components
+from geoshape.geometry.mesh import (
+    degenerate_faces,
+    duplicate_face_count,
+    face_areas,
+    unique_edges,
+    vertex_components,
+)
 from geoshape.io.validate import check_mesh
 
 
@@ -77,10 +83,8 @@ def mesh_report(V, F, *, name: str = "mesh", area_eps: float = 1e-12) -> dict:
     if m:
         edges, counts = unique_edges(F, n, return_counts=True)
         areas = face_areas(V, F)
-        repeated = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])
-        degenerate = int(np.count_nonzero(repeated | (areas <= area_eps * max(diag, 1e-300) ** 2)))
-        _, dup_counts = np.unique(np.sort(F, axis=1), axis=0, return_counts=True)
-        duplicates = int((dup_counts - 1).sum())
+        degenerate = int(np.count_nonzero(degenerate_faces(V, F, area_eps=area_eps)))
+        duplicates = duplicate_face_count(F)
         nm_vertices = nonmanifold_vertices(n, F)
         area = float(areas.sum())
     else:

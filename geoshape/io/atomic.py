@@ -57,6 +57,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=f".tmp{suffix}", dir=dest.parent)
+        # (the name pattern is what leftover_temporaries() looks for)
     except OSError as exc:
         raise _output_error(dest, exc) from None
     os.close(fd)
@@ -76,6 +77,16 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+
+
+def leftover_temporaries(path: str | os.PathLike) -> list[Path]:
+    """Temporaries that :func:`atomic_path` writes beside ``path`` and that a killed process
+    leaves behind (``.NAME.*.tmp*``); for a folder, also those inside it."""
+    path = Path(path)
+    found = list(path.parent.glob(f".{path.name}.*.tmp*"))
+    if path.is_dir():
+        found += list(path.glob(".*.tmp*"))
+    return found
 
 
 def _output_error(dest: Path, exc: OSError) -> OutputError:

@@ -230,8 +230,7 @@ class ShapeIndex:
         nothing was written (e.g. a full disk) is removed again."""
         self.close()
         if not self._pre_existing and self.path.exists() and self.path.stat().st_size == 0:
-            for suffix in ("", "-wal", "-shm", "-journal"):
-                Path(str(self.path) + suffix).unlink(missing_ok=True)
+            self._remove_files()
 
     def _discard_if_new_and_empty(self) -> None:
         """Close and delete the database this object initialised, if it stores nothing and no
@@ -246,8 +245,12 @@ class ShapeIndex:
             busy = True
         if not busy:
             self.close()
-            for suffix in ("", "-wal", "-shm", "-journal"):
-                Path(str(self.path) + suffix).unlink(missing_ok=True)
+            self._remove_files()
+
+    def _remove_files(self) -> None:
+        """Delete the database file and SQLite's companions of it (WAL, shared memory, journal)."""
+        for suffix in ("", "-wal", "-shm", "-journal"):
+            Path(str(self.path) + suffix).unlink(missing_ok=True)
 
     def __enter__(self):
         return self
@@ -619,10 +622,12 @@ def _nearest_first(d: np.ndarray, k: int) -> np.ndarray:
 
 
 def _claim_alive(host: str, pid: int, since: float, my_host: str, now: float) -> bool:
-    """Is a claim still held? Same host: its process lives. Another host: younger than
-    :data:`CLAIM_LIFETIME`."""
-    if host != my_host or now - since >= CLAIM_LIFETIME:  # old claims lapse (a pid may be reused)
-        return now - since < CLAIM_LIFETIME
+    """Is a claim still held? Never once older than :data:`CLAIM_LIFETIME`; before that, on
+    this host while its process lives, on another host always."""
+    if now - since >= CLAIM_LIFETIME:  # old claims lapse (a pid may have been reused)
+        return False
+    if host != my_host:  # cannot look at another host's processes
+        return True
     try:
         os.kill(int(pid), 0)
     except ProcessLookupError:

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from geoshape.errors import GeoshapeError, InvalidMeshError
-from geoshape.parallel import single_thread_blas  # importable from here too (one BLAS thread)
+from geoshape.parallel import single_thread_blas
 
 __all__ = ["describe_file", "compute_descriptors", "retrieval3d_matrix",
-           "retrieval3d_on_folder", "DEFAULT_RERANK_K", "single_thread_blas"]
+           "retrieval3d_on_folder", "DEFAULT_RERANK_K"]
 
 #: shortlist size of EVD → CCD re-ranking
 DEFAULT_RERANK_K = 20

@@ -106,24 +106,23 @@ def rerank(D, method: str = "lcdp", *, k: int | None = None, iterations: int | N
     k = min(_check_int("k", defaults["k"] if k is None else k, 1), n - 1)
     iterations = _check_int("iterations", defaults["iterations"] if iterations is None else iterations, 0)
     S = 0.5 * (D + D.T)
-    S = S - np.minimum(S.min(axis=1, keepdims=True), 0.0)  # tolerate negative scores: shift, keep order
+    S = S - min(float(S.min()), 0.0)  # tolerate negative scores: one shift keeps order and symmetry
     np.fill_diagonal(S, 0.0)
     order = np.argsort(S, axis=1, kind="stable")  # (N, N); column 0 is normally the item itself
     sigma = S[np.arange(n), order[:, k]]
     sigma = np.where(sigma > 0, sigma, np.maximum(sigma.max(), 1e-300))
     W = np.exp(-(S**2) / (sigma[:, None] * sigma[None, :]))
     P = W / W.sum(axis=1, keepdims=True)
-    neighbours = order[:, : k + 1]  # itself and its k nearest
-    rows = np.repeat(np.arange(n), k + 1)
-    PK = np.zeros_like(P)
-    PK[rows, neighbours.ravel()] = W[rows, neighbours.ravel()]
-    PK /= PK.sum(axis=1, keepdims=True)
     import scipy.sparse as sp
 
-    PKs = sp.csr_matrix(PK)
+    rows = np.repeat(np.arange(n), k + 1)
+    cols = order[:, : k + 1].ravel()  # itself and its k nearest
+    weights = W[rows, cols].reshape(n, k + 1)
+    weights /= weights.sum(axis=1, keepdims=True)
+    PK = sp.csr_matrix((weights.ravel(), (rows, cols)), shape=(n, n))  # k + 1 entries a row
     A = P
     for _ in range(iterations):
-        A = PKs @ (PKs @ A.T).T  # P_K A P_Kᵀ, two sparse-dense products: O(N² k)
+        A = PK @ (PK @ A.T).T  # P_K A P_Kᵀ, two sparse-dense products: O(N² k)
     A = 0.5 * (A + A.T)
     np.fill_diagonal(A, A.max(axis=1))  # each item stays its own nearest
     top = A.max(axis=1, keepdims=True)

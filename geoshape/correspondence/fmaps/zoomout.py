@@ -113,7 +113,7 @@ def zoomout(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, 
     if samples_only and (rows1 is None or rows2 is None):
         raise InvalidOptionError("samples_only needs samples1 and samples2")
     # a map given on samples1 only (aligned with it) or on every vertex of mesh 1; the two
-    # coincide when samples1 holds every vertex (then it is arange: see embedding_samples)
+    # coincide when samples1 holds every vertex (then it is arange: see euclidean_farthest_point_sampling)
     sub = p2p if rows1 is None or len(p2p) == len(rows1) else p2p[rows1]
     ks = list(range(k_start, k_end + 1, step))
     if ks[-1] != k_end:

@@ -34,13 +34,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.distances import chi2_distance, chi2_distances
+from geoshape.distances import chi2_distances
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import vertex_areas
 from geoshape.io.validate import check_mesh
 
 __all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "EVD_CONFIG_NAMES", "evd_descriptor",
-           "affinity_spectrum", "heat_limit_evd", "chi2_distance", "evd_distance_matrix"]
+           "affinity_spectrum", "heat_limit_evd", "evd_distance_matrix"]
 
 EVD_N_EIGENVALUES = 20
 #: samples per shape of the default configuration; keep it fixed across a collection
@@ -246,8 +246,8 @@ def _sample_block(V, F, n_samples, affinity, sigma, width, vertex_area, geodesic
 def evd_distance_matrix(descriptors) -> np.ndarray:
     """All-pairs chi-square distances of ``(N, d)`` descriptors, an ``(N, N)`` matrix.
 
-    :func:`geoshape.distances.chi2_distances` on absolute values; ``chi2_distance`` (one
-    pair) is :func:`geoshape.distances.chi2_distance`, importable from here too.
+    :func:`geoshape.distances.chi2_distances` on absolute values (one pair:
+    :func:`geoshape.distances.chi2_distance`).
     """
     X = np.asarray(descriptors, dtype=np.float64)
     return chi2_distances(X, X)
