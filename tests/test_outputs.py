@@ -111,3 +111,22 @@ def test_a_vanishing_gaussian_width_is_refused(tmp_path, capsys):
     assert main(["embed", str(tmp_path / "m.off"), "-o", str(tmp_path / "e.ply"), "--sigma", "1e-300"]) == 2
     assert "sigma" in capsys.readouterr().err
     assert not (tmp_path / "e.ply").exists()
+
+
+def test_help_states_the_image_and_width_limits_the_library_enforces(capsys, tmp_path):
+    from PIL import Image
+
+    from geoshape.io.silhouette import MAX_IMAGE_PIXELS
+    from geoshape.spectral.affinity import MIN_SIGMA_FACTOR
+
+    assert main(["match2d", "--help"]) == 0
+    assert f"{MAX_IMAGE_PIXELS:,}" in " ".join(capsys.readouterr().out.split())
+    assert main(["embed", "--help"]) == 0
+    import re
+
+    stated = re.search(r"RHO >= ([0-9.e+-]+)\)", " ".join(capsys.readouterr().out.split()))
+    assert stated and float(stated.group(1)) == MIN_SIGMA_FACTOR
+    side = int(MAX_IMAGE_PIXELS**0.5) + 1
+    Image.new("L", (side, side)).save(tmp_path / "big.png")
+    assert main(["match2d", str(tmp_path / "big.png"), str(tmp_path / "big.png")]) == 2
+    assert "image too large" in capsys.readouterr().err

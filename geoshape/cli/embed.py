@@ -36,7 +36,8 @@ def register(subparsers) -> None:
     p.add_argument("--affinity", choices=("geodesic", "euclidean", "combined"),
                    default="geodesic", help="distances under the Gaussian (default geodesic)")
     p.add_argument("--sigma", default="max", metavar="max|mean|RHO",
-                   help="Gaussian width: max distance (default), mean distance, or RHO x mean")
+                   help="Gaussian width: max distance (default), mean distance, or RHO x mean "
+                   "(RHO >= 1e-6)")
     p.add_argument("--geodesics", choices=("graph", "heat", "exact"), default="graph",
                    help="geodesic backend (default graph: shortest paths on the structural graph)")
     p.add_argument("--scaling", choices=("sqrt", "eigenvalue", "none", "squared_sphere"),

@@ -15,8 +15,8 @@ def register(subparsers) -> None:
         description="Extract the outer contour of each silhouette, match them point to point, "
         "and print the matching cost. Pairs go to --out (CSV), a picture to --plot.",
     )
-    p.add_argument("image_a", help="first silhouette image")
-    p.add_argument("image_b", help="second silhouette image")
+    p.add_argument("image_a", help="first silhouette image (at most 50,000,000 pixels)")
+    p.add_argument("image_b", help="second silhouette image (at most 50,000,000 pixels)")
     p.add_argument("--method", default="default", help=METHOD_HELP)
     p.add_argument("--matcher", default=None,
                    help="override the method's matcher: best, proximity, hungarian, dp")

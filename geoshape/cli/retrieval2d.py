@@ -16,7 +16,8 @@ def register(subparsers) -> None:
         "matrix (--plot). Every image is read first: a missing or unreadable file stops the "
         "command with its name and nothing is written. Outputs are written atomically at the end.",
     )
-    p.add_argument("folder", metavar="DIR", help="folder with images and labels.csv")
+    p.add_argument("folder", metavar="DIR",
+                   help="folder with images (each at most 50,000,000 pixels) and labels.csv")
     p.add_argument("--method", default="default",
                    help="default, gsc, shape_context, idsc, curvature_map")
     p.add_argument("--rerank", default=None, metavar="NAME",

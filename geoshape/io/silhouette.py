@@ -20,10 +20,13 @@ import numpy as np
 
 from geoshape.errors import InvalidImageError
 
-__all__ = ["load_silhouette", "MIN_PIXELS"]
+__all__ = ["load_silhouette", "MIN_PIXELS", "MAX_IMAGE_PIXELS"]
 
 #: Fewest foreground pixels accepted for a shape.
 MIN_PIXELS = 4
+#: Most pixels an image may have: its grey levels are held in float64 (8 bytes a pixel), so
+#: 50 million pixels (about 7000 x 7000) need 400 MB; larger headers are refused unread.
+MAX_IMAGE_PIXELS = 50_000_000
 
 
 def load_silhouette(path: str | os.PathLike) -> np.ndarray:
@@ -53,6 +56,9 @@ def load_silhouette(path: str | os.PathLike) -> np.ndarray:
     path = Path(path)
     try:
         with Image.open(path) as im:
+            if im.width * im.height > MAX_IMAGE_PIXELS:
+                raise InvalidImageError(f"{path}: image too large ({im.width} x {im.height} pixels; "
+                                        f"at most {MAX_IMAGE_PIXELS:,} are read)")
             im.load()
             if im.mode in ("RGBA", "LA", "PA") or (im.mode == "P" and "transparency" in im.info):
                 rgba = np.asarray(im.convert("RGBA"), dtype=np.float64)
@@ -60,6 +66,8 @@ def load_silhouette(path: str | os.PathLike) -> np.ndarray:
                 grey = rgba[..., 3] if np.ptp(grey) == 0 else grey
             else:
                 grey = np.asarray(im.convert("F"), dtype=np.float64)
+    except InvalidImageError:
+        raise
     except FileNotFoundError:
         raise InvalidImageError(f"{path}: no such image file") from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
