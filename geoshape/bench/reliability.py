@@ -323,6 +323,23 @@ def _input_cases(sil: str, meshes: str, a: str, b: str, m0: str, m1: str) -> lis
          ("index", "add", f"{full}/idx.db", meshes, "--descriptor", "d2", "--backend", "serial"),
          (full,), "full", None),
     ]
+    done_or_refused = frozenset({0, 2})  # a defect is repaired, tolerated or refused: never a crash
+    defect_names = ("duplicate_faces", "repeated_vertex", "nonmanifold_edge", "zero_area_face",
+                    "coincident_vertices")
+    for name in defect_names:
+        mesh = f"{defects}/{name}.off"
+        for command, argv in (
+            ("info", ("info", mesh)),
+            ("embed", ("embed", mesh, "-o", "{out}/e.ply")),
+            ("correspond", ("correspond", mesh, m1, "-o", "{out}/map.txt")),
+            ("gen spikes", ("gen", "spikes", mesh, "--count", "3", "--height", "0.1",
+                            "--out", "{out}/s.off")),
+            ("gen stretch", ("gen", "stretch", mesh, "--scale", "1.5,1,1", "--out", "{out}/s.off")),
+            ("gen decimate", ("gen", "decimate", mesh, "--ratios", "0.5", "--out", "{out}/d")),
+            ("run", ("run", "-i", mesh, "-s", "{in}/script.mlx", "-o", "{out}/o.ply")),
+        ):
+            rows.append(("mesh defect × every mesh command", f"{command} {name}.off", argv, (), None,
+                         done_or_refused))
     return [Case(group, name, argv, expect=expect or frozenset({2}), clean=clean, needs=needs)
             for group, name, argv, clean, needs, expect in rows]
 
