@@ -31,12 +31,20 @@ def _batch_folder(folder, n_pairs: int = 12):
     return len(m.vertices)
 
 
+def default_sigint() -> None:
+    """Give a child the default SIGINT disposition, as an interactive shell does: a test run
+    started in the background (``cmd &``, some CI runners) inherits SIGINT *ignored*, and a
+    command that inherits an ignored SIGINT rightly keeps ignoring it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(argv: list[str], quiet: bool = False) -> subprocess.Popen:
     """``geoshape ARGV`` in a new session (so a signal can go to its whole group, as a
-    terminal's Ctrl-C does)."""
+    terminal's Ctrl-C does), with SIGINT at its default."""
     out = subprocess.DEVNULL if quiet else subprocess.PIPE
     return subprocess.Popen(
-        [sys.executable, "-m", "geoshape", *argv], stdout=out, stderr=out, text=True, start_new_session=True
+        [sys.executable, "-m", "geoshape", *argv], stdout=out, stderr=out, text=True, start_new_session=True,
+        preexec_fn=default_sigint,
     )
 
 

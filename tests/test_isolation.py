@@ -73,10 +73,35 @@ def test_kill_int_of_the_command_alone_reaches_the_child_once(tmp_path):
             return 0
         sys.exit(run_isolated(work, command="demo", inputs=[], outputs=[]))
     ''')
+    from tests.test_interrupt import default_sigint
+
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=default_sigint)
     assert proc.stdout.readline().strip() == "started"
     time.sleep(0.2)
     os.kill(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130 and err.count("interrupted once") == 1, err
+
+
+def test_an_ignored_sigint_stays_ignored(tmp_path):
+    """Started with SIGINT ignored (``nohup``, ``cmd &``), the command keeps running through a
+    SIGINT, as Python itself would: the parent does not forward it, the child ignores it."""
+    import os
+    import signal
+
+    script = textwrap.dedent('''
+        import sys, time
+        from geoshape.cli.isolation import run_isolated
+        def work():
+            print("started", flush=True)
+            time.sleep(1.5)
+            return 0
+        sys.exit(run_isolated(work, command="demo", inputs=[], outputs=[]))
+    ''')
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert proc.stdout.readline().strip() == "started"
+    os.kill(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
