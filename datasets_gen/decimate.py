@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from geoshape.errors import GeoshapeError, InvalidOptionError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["Decimated", "Collapsed", "decimate_exact", "decimate_fast", "decimation_ladder", "check_ratio",
@@ -47,12 +48,16 @@ class Decimated(NamedTuple):
         For each decimated vertex, its 0-based id in the original mesh (all distinct).
     fraction : float
         Achieved vertex fraction ``k / n``.
+    mesh : object
+        The same mesh in the caller's kind: a trimesh / Open3D / pymeshlab mesh when one was
+        passed in (:func:`geoshape.io.interop.mesh_input`), else the ``(V, F)`` pair.
     """
 
     V: np.ndarray
     F: np.ndarray
     orig_ids: np.ndarray
     fraction: float
+    mesh: object = None
 
 
 class Collapsed(NamedTuple):
@@ -68,14 +73,19 @@ class Collapsed(NamedTuple):
         vertex has one; a surviving vertex maps to itself, moved).
     fraction : float
         Achieved vertex fraction ``k / n``.
+    mesh : object
+        The same mesh in the caller's kind: a trimesh / Open3D / pymeshlab mesh when one was
+        passed in (:func:`geoshape.io.interop.mesh_input`), else the ``(V, F)`` pair.
     """
 
     V: np.ndarray
     F: np.ndarray
     collapsed_to: np.ndarray
     fraction: float
+    mesh: object = None
 
 
+@mesh_input(returns_mesh=True)
 def decimate_fast(V, F, ratio: float) -> Collapsed:
     """Decimate with fast-simplification (Fast-Quadric-Mesh-Simplification) and replay its
     collapses to get, for every original vertex, the decimated vertex it became.
@@ -160,6 +170,7 @@ def _recover_ids(V: np.ndarray, Vd: np.ndarray, carried: np.ndarray) -> np.ndarr
     return ids
 
 
+@mesh_input(returns_mesh=True)
 def decimate_exact(
     V,
     F,
@@ -189,7 +200,7 @@ def decimate_exact(
     Returns
     -------
     Decimated
-        ``(V, F, orig_ids, fraction)``; ``V == V_in[orig_ids]`` bitwise. ``fraction`` may
+        ``(V, F, orig_ids, fraction, mesh)``; ``V == V_in[orig_ids]`` bitwise. ``fraction`` may
         exceed ``ratio`` when the constraints stop the collapse early.
 
     Raises
@@ -257,6 +268,7 @@ def decimate_exact(
     return Decimated(Vd, Fd, ids, len(Vd) / n)
 
 
+@mesh_input(returns_mesh=True)
 def decimation_ladder(
     V,
     F,

@@ -16,6 +16,7 @@ import numpy as np
 
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import face_normals
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["Spiked", "add_spikes"]
@@ -35,12 +36,16 @@ class Spiked(NamedTuple):
         Index (in the input ``F``) of the face each spike grew from, in spike order.
     offsets : (k,) float64
         Signed distance of each tip from its face plane along the face's unit normal.
+    mesh : object
+        The same mesh in the caller's kind: a trimesh / Open3D / pymeshlab mesh when one was
+        passed in (:func:`geoshape.io.interop.mesh_input`), else the ``(V, F)`` pair.
     """
 
     V: np.ndarray
     F: np.ndarray
     faces: np.ndarray
     offsets: np.ndarray
+    mesh: object = None
 
 
 def _whole_count(count) -> int:
@@ -53,6 +58,7 @@ def _whole_count(count) -> int:
     return int(count)
 
 
+@mesh_input(returns_mesh=True)
 def add_spikes(V, F, count: int, height: float, *, seed: int = 0) -> Spiked:
     """Add ``count`` spikes pulled ``height`` × (bounding-box diagonal) off random faces.
 
@@ -73,7 +79,8 @@ def add_spikes(V, F, count: int, height: float, *, seed: int = 0) -> Spiked:
     Returns
     -------
     Spiked
-        ``(V, F, faces, offsets)`` with ``V[:n]`` identical to the input.
+        ``(V, F, faces, offsets, mesh)`` with ``V[:n]`` identical to the input; ``mesh`` is
+        the spiky mesh in the caller's kind (a trimesh in, a trimesh out).
 
     Raises
     ------

@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["stretch_axes", "stretch_part", "StretchedPart", "graph_distances", "MAX_PART_FACTOR"]
@@ -21,6 +22,7 @@ __all__ = ["stretch_axes", "stretch_part", "StretchedPart", "graph_distances", "
 MAX_PART_FACTOR = 2.25
 
 
+@mesh_input(returns_mesh=True)
 def stretch_axes(V, F, scale, *, about=None) -> np.ndarray:
     """Scale a mesh non-uniformly along the coordinate axes.
 
@@ -37,7 +39,8 @@ def stretch_axes(V, F, scale, *, about=None) -> np.ndarray:
     Returns
     -------
     V : (n, 3) float64
-        Stretched vertices (same ids, use with the input ``F``).
+        Stretched vertices (same ids, use with the input ``F``). Given one mesh object
+        instead of ``V, F``: the stretched mesh in that object's kind.
 
     Examples
     --------
@@ -57,6 +60,7 @@ def stretch_axes(V, F, scale, *, about=None) -> np.ndarray:
     return (V - c) * s + c
 
 
+@mesh_input
 def graph_distances(V, F, source: int, limit: float = np.inf) -> np.ndarray:
     """Shortest-path distances along mesh edges from one vertex (Dijkstra).
 
@@ -97,14 +101,19 @@ class StretchedPart(NamedTuple):
         Vertex id at the centre of the ball.
     direction : (3,) float64
         Unit direction of the stretch.
+    mesh : object
+        The same mesh in the caller's kind: a trimesh / Open3D / pymeshlab mesh when one was
+        passed in (:func:`geoshape.io.interop.mesh_input`), else the ``(V, F)`` pair.
     """
 
     V: np.ndarray
     weights: np.ndarray
     center: int
     direction: np.ndarray
+    mesh: object = None
 
 
+@mesh_input(returns_mesh=True)
 def stretch_part(
     V,
     F,
@@ -141,7 +150,7 @@ def stretch_part(
     Returns
     -------
     StretchedPart
-        ``(V, weights, center, direction)``.
+        ``(V, weights, center, direction, mesh)``.
 
     Raises
     ------

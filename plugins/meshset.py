@@ -29,6 +29,8 @@ from geoshape_plugins.mlx import ScriptFilter, ScriptParam, read_mlx, write_mlx
 from geoshape_plugins.params import FilterError, FilterParameterError
 from geoshape_plugins.registry import Arity, Filter, find_filter, list_filters, resolve_params
 
+from geoshape.io.interop import mesh_input
+
 __all__ = ["Mesh", "MeshSet", "AppliedFilter", "no_progress"]
 
 
@@ -182,9 +184,14 @@ class MeshSet:
         self.progress = progress or no_progress
 
     # ---- meshes -------------------------------------------------------------------
+    @mesh_input
     def add_mesh(self, V, F, *, name: str | None = None, colors=None, quality=None,
                  selection=None, set_as_current: bool = True) -> int:
-        """Add a mesh ``(V, F)``; returns its index."""
+        """Add a mesh ``(V, F)`` or one trimesh / Open3D / pymeshlab mesh (a pymeshlab
+        ``MeshSet``: its current mesh), vertex order kept; returns its index.
+
+        Only the geometry of a mesh object is taken; give ``colors`` etc. explicitly.
+        """
         name = name or f"mesh {len(self.meshes)}"
         self.meshes.append(Mesh(V, F, name=name, colors=colors, quality=quality, selection=selection))
         if set_as_current:
@@ -197,6 +204,15 @@ class MeshSet:
 
         V, F = load_mesh(path)
         return self.add_mesh(V, F, name=Path(path).name)
+
+    def current_mesh_as(self, kind: str):
+        """The current mesh as ``kind``: ``"trimesh"``, ``"open3d"``, ``"pymeshlab"``,
+        ``"pymeshlab_meshset"`` or ``"arrays"`` (a ``(V, F)`` tuple); a new object with the same
+        vertex order and the per-vertex colours (see :func:`geoshape.io.interop.as_kind`)."""
+        from geoshape.io.interop import as_kind
+
+        m = self.current_mesh()
+        return as_kind(kind, m.V, m.F, colors=m.colors)
 
     def save_current_mesh(self, path: str | os.PathLike) -> Path:
         """Write the current mesh (with its colours) atomically."""

@@ -46,6 +46,7 @@ from geoshape.correspondence.orientation import orientation_score
 from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
 from geoshape.errors import InvalidMeshError, InvalidOptionError
 from geoshape.geometry.knn import nearest
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 log = logging.getLogger(__name__)
@@ -95,6 +96,7 @@ class PreparedMesh:
     Laplacian basis of k eigenpairs.
     """
 
+    @mesh_input
     def __init__(self, V, F, name: str = "mesh"):
         self.V, self.F = check_mesh(V, F, name=name)
         if len(self.V) < MIN_VERTICES:

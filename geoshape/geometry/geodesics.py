@@ -36,6 +36,7 @@ import scipy.sparse as sp
 
 from geoshape._options import check_choice
 from geoshape.errors import InvalidMeshError, InvalidOptionError, ResourceLimitError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -198,6 +199,7 @@ class GeodesicSolver:
     Each source returns a row of n float64.
     """
 
+    @mesh_input
     def __init__(self, V, F, method: str = DEFAULT_GEODESIC_METHOD, *, p: int = 1,
                  max_portals: int = 256, t_coef: float = 1.0, raw: bool = False):
         check_choice("geodesic method", method, GEODESIC_METHODS)
@@ -342,6 +344,7 @@ class GeodesicSolver:
         return out
 
 
+@mesh_input
 def geodesic_distances(V, F, sources, method: str = DEFAULT_GEODESIC_METHOD, *,
                        p: int = 1) -> np.ndarray:
     """Geodesic distances from ``sources`` to all vertices (one-off; see :class:`GeodesicSolver`).
@@ -370,6 +373,7 @@ def geodesic_distances(V, F, sources, method: str = DEFAULT_GEODESIC_METHOD, *,
     return GeodesicSolver(V, F, method, p=p).distances(sources)
 
 
+@mesh_input
 def all_pairs_geodesics(V, F, method: str = DEFAULT_GEODESIC_METHOD, *, p: int = 1,
                         max_bytes: int | None = None) -> np.ndarray:
     """All-pairs geodesic distances, refused when the ``(n, n)`` matrix would not fit.

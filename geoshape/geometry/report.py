@@ -18,6 +18,7 @@ from geoshape.geometry.mesh import (
     unique_edges,
     vertex_components,
 )
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 
@@ -52,6 +53,7 @@ def nonmanifold_vertices(n: int, F: np.ndarray) -> np.ndarray:
     return np.flatnonzero(fans > 1)
 
 
+@mesh_input
 def mesh_report(V, F, *, name: str = "mesh", area_eps: float = 1e-12) -> dict:
     """Summarise a mesh and its defects.
 

@@ -14,10 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
+from geoshape.io.interop import mesh_input
 
 __all__ = ["farthest_point_sampling", "geodesic_voronoi_sampling", "euclidean_farthest_point_sampling"]
 
 
+@mesh_input
 def farthest_point_sampling(V, F, n_samples: int, *, method: str = "graph", p: int = 1,
                             seed: int = 0, n_jumps: int = 3, solver=None,
                             ) -> tuple[np.ndarray, np.ndarray]:

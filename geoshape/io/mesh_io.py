@@ -23,6 +23,7 @@ import numpy as np
 
 from geoshape.errors import InvalidMeshError
 from geoshape.io.atomic import atomic_path
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 MESH_FORMATS = ("off", "obj", "ply", "stl")
@@ -299,6 +300,7 @@ def _stl_bytes(V, F) -> bytes:
     return trimesh.Trimesh(V, F, process=False).export(file_type="stl")
 
 
+@mesh_input
 def save_mesh(path: str | os.PathLike, V, F, colors=None) -> Path:
     """Write a mesh atomically; vertex order is kept exactly as given.
 

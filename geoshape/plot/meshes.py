@@ -11,6 +11,7 @@ import numpy as np
 
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import face_normals
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["draw_mesh", "render_mesh_png"]
@@ -40,6 +41,7 @@ def draw_mesh(ax, V: np.ndarray, F: np.ndarray, facecolors: np.ndarray, *, elev:
     ax.set_axis_off()
 
 
+@mesh_input
 def render_mesh_png(path: str | os.PathLike, V, F, values=None, *, cmap: str = "coolwarm",
                     elev: float = 20.0, azim: float = -60.0, size: int = 600,
                     title: str | None = None) -> Path:

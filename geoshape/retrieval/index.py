@@ -3,7 +3,10 @@
 Each row holds one descriptor of one file: the absolute path, the SHA-256 of the file's
 bytes, the descriptor name, its full parameter record (canonical JSON, see
 :func:`geoshape.retrieval.descriptors.descriptor_params`), the array (float64 bytes and
-shape) and the compute time.
+shape) and the compute time. A mesh added from memory (trimesh, Open3D, pymeshlab,
+``(V, F)``) is stored the same way under its name instead of a path, with the SHA-256 of
+its arrays (:func:`geoshape.io.interop.mesh_content_sha256`); names are never absolute
+paths, so such rows are never taken for missing files.
 
 Robustness
 ----------
@@ -39,12 +42,14 @@ import os
 import socket
 import sqlite3
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from geoshape.errors import DatasetError, InvalidOptionError
+from geoshape.io.interop import mesh_input
 
 __all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs",
            "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION"]
@@ -123,13 +128,32 @@ def expand_mesh_inputs(inputs) -> list[Path]:
     return out
 
 
+@dataclass(eq=False)
+class _MemoryMesh:
+    """A mesh added from memory: its key in the index, the hash of its arrays, the arrays."""
+
+    name: str
+    sha256: str
+    V: np.ndarray
+    F: np.ndarray
+
+    def __str__(self) -> str:
+        return self.name
+
+
+def _is_gone(key: str) -> bool:
+    """A stored file that no longer exists (a mesh added from memory, stored under a name
+    that is not an absolute path, never is)."""
+    return os.path.isabs(key) and not Path(key).is_file()
+
+
 @dataclass
 class AddReport:
     """What :meth:`ShapeIndex.add` did: rows added, skipped as unchanged, failures."""
 
     added: int = 0
     skipped: int = 0
-    failed: list[tuple[str, str]] = field(default_factory=list)  # (path, message)
+    failed: list[tuple[str, str]] = field(default_factory=list)  # (path or name, message)
     batches: int = 0
     seconds: float = 0.0
     claimed_elsewhere: int = 0  # rows another concurrent add was computing
@@ -140,7 +164,7 @@ class Hit:
     """One query result."""
 
     rank: int
-    path: str
+    path: str  # the file's absolute path, or the name of a mesh added from memory
     distance: float
     first_distance: float | None = None  # before re-ranking
 
@@ -159,6 +183,7 @@ class ShapeIndex:
     --------
     >>> idx = ShapeIndex("shapes.db")  # doctest: +SKIP
     >>> idx.add(["meshes/"], descriptors=["evd"])  # doctest: +SKIP
+    >>> idx.add([trimesh_mesh, (V, F)], names=["bunny", "cat"])  # doctest: +SKIP
     >>> idx.query_mesh(V, F, "evd", top=10)  # doctest: +SKIP
     """
 
@@ -351,8 +376,8 @@ class ShapeIndex:
         from geoshape.retrieval.descriptors import get_descriptor
         from geoshape.retrieval.meshes import describe_file
 
-        items = [(str(f), nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
-                 for f, _, nm in tasks]
+        items = [((f.name, f.V, f.F) if isinstance(f, _MemoryMesh) else str(f), nm,
+                  affinity if get_descriptor(nm).uses_affinity else None, seed) for f, _, nm in tasks]
         results = run_map(describe_file, items, backend=backend, n_jobs=n_jobs, scheduler=client,
                           progress=False, on_error="return")
         rows, bad = [], {}
@@ -364,9 +389,10 @@ class ShapeIndex:
         return [r for r in rows if str(r[0]) not in bad], bad
 
     def prune(self) -> list[str]:
-        """Delete the rows of files that no longer exist; return their paths."""
+        """Delete the rows of files that no longer exist; return their paths (meshes added
+        from memory stay)."""
         paths = [r[0] for r in self._conn.execute("SELECT DISTINCT path FROM entries")]
-        gone = [p for p in paths if not Path(p).is_file()]
+        gone = [p for p in paths if _is_gone(p)]
         if gone:
             with self._writing() as conn:
                 conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
@@ -374,17 +400,28 @@ class ShapeIndex:
         return gone
 
     # -- adding --------------------------------------------------------------------------
-    def add(self, inputs, descriptors=DEFAULT_INDEX_DESCRIPTORS, *, affinity: str | None = None,
-            seed: int = 0, backend: str | None = None, n_jobs: int | None = None,
-            scheduler=None, batch_size: int | None = None, progress=None) -> AddReport:
-        """Describe mesh files and store the descriptors, skipping unchanged files.
+    def add(self, inputs, descriptors=DEFAULT_INDEX_DESCRIPTORS, *, names=None,
+            affinity: str | None = None, seed: int = 0, backend: str | None = None,
+            n_jobs: int | None = None, scheduler=None, batch_size: int | None = None,
+            progress=None) -> AddReport:
+        """Describe mesh files (or meshes in memory) and store the descriptors, skipping unchanged ones.
 
         Parameters
         ----------
-        inputs : sequence of path
-            Mesh files and/or folders (searched recursively for mesh files).
+        inputs : sequence of path or mesh, a single mesh, or a mapping name -> mesh
+            Mesh files and/or folders (searched recursively for mesh files), and/or meshes
+            in memory: trimesh / Open3D / pymeshlab meshes (a ``MeshSet``: its current mesh)
+            or ``(V, F)`` pairs, described exactly as the same mesh read from a file.
         descriptors : sequence of str
             Registered descriptor names.
+        names : sequence of str or None, optional
+            One entry per item of ``inputs``: the name a mesh in memory is stored and
+            returned under (:attr:`Hit.path`); ``None`` for files and folders, whose key is
+            their absolute path. A mesh without a name is stored as
+            ``mesh-<first 16 hex digits of the SHA-256 of its arrays>``, so adding the same
+            geometry again finds it. Names are unique, non-empty and not absolute paths; a
+            name added again with other geometry is described again and replaced, like an
+            edited file.
         affinity : str or None
             For the spectral/embedding descriptors (default geodesic); ignored by the others.
         seed : int
@@ -400,20 +437,29 @@ class ShapeIndex:
         -------
         AddReport
 
+        Raises
+        ------
+        InvalidOptionError
+            Bad ``names`` (wrong length, a name for a file, duplicates, an absolute path).
+        InvalidMeshError
+            An item that is neither a path nor a mesh. A mesh that fails validation is
+            reported in :attr:`AddReport.failed` and skipped, like a bad file.
+
         Notes
         -----
         Each file is read and hashed once in this process (O(size)), then described on the
-        runner; one transaction per batch.
+        runner; one transaction per batch. A mesh in memory is hashed here and its arrays
+        sent to the runner.
         """
         from geoshape.parallel import _dask_client, _resolve_backend, default_n_jobs
         from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
 
         t0 = time.perf_counter()
-        names = list(dict.fromkeys(descriptors))
-        if not names:
+        wanted = list(dict.fromkeys(descriptors))
+        if not wanted:
             raise InvalidOptionError("no descriptor named")
         pkeys = {}
-        for nm in names:
+        for nm in wanted:
             spec = get_descriptor(nm)
             pkeys[nm] = params_key(descriptor_params(nm, affinity if spec.uses_affinity else None, seed))
         backend = _resolve_backend(backend, scheduler)
@@ -422,20 +468,26 @@ class ShapeIndex:
             batch_size = max(4, 4 * workers)
         if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
             raise InvalidOptionError(f"batch_size must be a positive integer, got {batch_size!r}")
-        files = expand_mesh_inputs(inputs)
         report = AddReport()
-        existing = {nm: self._existing(nm, pkeys[nm]) for nm in names}
-        todo = []  # (path, sha, [names to compute])
+        paths, in_memory = _split_inputs(inputs, names, report)
+        files = expand_mesh_inputs(paths)
+        existing = {nm: self._existing(nm, pkeys[nm]) for nm in wanted}
+        todo = []  # (path or _MemoryMesh, sha, [descriptors to compute])
         for f in files:
             try:
                 sha = file_sha256(f)
             except OSError as exc:
                 report.failed.append((str(f), f"{f}: cannot read: {exc}"))
                 continue
-            need = [nm for nm in names if existing[nm].get(str(f)) != sha]
-            report.skipped += len(names) - len(need)
+            need = [nm for nm in wanted if existing[nm].get(str(f)) != sha]
+            report.skipped += len(wanted) - len(need)
             if need:
                 todo.append((f, sha, need))
+        for m in in_memory:
+            need = [nm for nm in wanted if existing[nm].get(m.name) != m.sha256]
+            report.skipped += len(wanted) - len(need)
+            if need:
+                todo.append((m, m.sha256, need))
         client, owned = (None, False)
         if backend == "dask":
             client, owned = _dask_client(scheduler, workers)
@@ -536,7 +588,8 @@ class ShapeIndex:
         rerank_k : int or None
             Shortlist size; default ``max(top, 20)``.
         skip_missing : bool
-            Never return a file that no longer exists (only the shortlist is checked on disk).
+            Never return a file that no longer exists (only the shortlist is checked on disk;
+            meshes added from memory are always returned).
 
         Returns
         -------
@@ -560,7 +613,7 @@ class ShapeIndex:
         cand = _nearest_first(d, k)
         if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
             while True:
-                present = [i for i in cand if Path(paths[i]).is_file()]
+                present = [i for i in cand if not _is_gone(paths[i])]
                 if len(present) >= k or len(cand) == m:
                     break
                 cand = _nearest_first(d, min(m, 2 * len(cand) + k))
@@ -582,10 +635,13 @@ class ShapeIndex:
         return [Hit(r + 1, paths[keep[o]], float(rd[o]), float(d[keep[o]]))
                 for r, o in enumerate(order[:top])]
 
+    @mesh_input
     def query_mesh(self, V, F, descriptor: str = "evd", *, top: int = 10,
                    affinity: str | None = None, seed: int = 0, rerank: str | None = None,
                    rerank_k: int | None = None, skip_missing: bool = True) -> tuple[list[Hit], dict]:
         """Describe a mesh and rank the stored shapes against it.
+
+        ``V, F`` may be replaced by one trimesh / Open3D / pymeshlab mesh (vertex order kept).
 
         Returns
         -------
@@ -612,6 +668,56 @@ class ShapeIndex:
                                      skip_missing=skip_missing)
         t2 = time.perf_counter()
         return hits, {"seconds_descriptor": t1 - t0, "seconds_search": t2 - t1}
+
+
+def _split_inputs(inputs, names, report: AddReport) -> tuple[list, list[_MemoryMesh]]:
+    """Paths (files, folders) and meshes in memory of :meth:`ShapeIndex.add`'s ``inputs``,
+    the meshes validated, hashed and named; an invalid mesh goes to ``report.failed``."""
+    from geoshape.errors import InvalidMeshError
+    from geoshape.io.interop import as_arrays, is_mesh_object, mesh_content_sha256
+
+    if isinstance(inputs, Mapping):
+        if names is not None:
+            raise InvalidOptionError("give names either as the keys of inputs or as names=, not both")
+        names, inputs = list(inputs), list(inputs.values())
+    elif isinstance(inputs, (str, os.PathLike)) or is_mesh_object(inputs):
+        inputs = [inputs]
+    else:
+        inputs = list(inputs)
+    if names is None:
+        names = [None] * len(inputs)
+    names = list(names)
+    if len(names) != len(inputs):
+        raise InvalidOptionError(f"names must have one entry per input: {len(names)} names "
+                                 f"for {len(inputs)} inputs")
+    paths, meshes, taken = [], {}, set()
+    for i, (item, name) in enumerate(zip(inputs, names, strict=True)):
+        if isinstance(item, (str, os.PathLike)):
+            if name is not None:
+                raise InvalidOptionError(f"input {i} ({item}) is a path: a file is stored under its "
+                                         f"path, names= applies to meshes only (give None)")
+            paths.append(item)
+            continue
+        if not is_mesh_object(item):
+            as_arrays(item, name=f"input {i}")  # raises, naming the type
+        if name is not None and (not isinstance(name, str) or not name or os.path.isabs(name)):
+            raise InvalidOptionError(f"mesh names must be non-empty text and not absolute paths "
+                                     f"(those are files' keys); got {name!r} for input {i}")
+        if name is not None and name in taken:
+            raise InvalidOptionError(f"mesh name {name!r} is given twice")
+        taken.add(name)
+        label = name or f"mesh {i}"
+        try:
+            V, F = as_arrays(item, name=label)
+        except InvalidMeshError as exc:
+            report.failed.append((label, str(exc)))
+            continue
+        sha = mesh_content_sha256(V, F)
+        key = name or f"mesh-{sha[:16]}"
+        if key in meshes and (name is not None or meshes[key].sha256 != sha):
+            raise InvalidOptionError(f"mesh name {key!r} is given twice")
+        meshes[key] = _MemoryMesh(key, sha, V, F)
+    return paths, list(meshes.values())
 
 
 def _nearest_first(d: np.ndarray, k: int) -> np.ndarray:

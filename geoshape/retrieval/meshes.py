@@ -2,7 +2,9 @@
 
 :func:`compute_descriptors` loads and describes files on the runner of
 :mod:`geoshape.parallel` (local processes by default, Dask with a scheduler); a file that
-cannot be read or described yields an error naming it, without stopping the batch.
+cannot be read or described yields an error naming it, without stopping the batch. Meshes
+already in memory (trimesh, Open3D, pymeshlab, ``(V, F)`` pairs) may stand among the files;
+they are named ``mesh <i>`` (their position) in errors.
 :func:`retrieval3d_on_folder` is the library side of ``geoshape retrieval3d``.
 """
 
@@ -30,7 +32,8 @@ def describe_file(item) -> tuple[np.ndarray, float]:
     Parameters
     ----------
     item : tuple
-        ``(path, name, affinity, seed)``.
+        ``(path, name, affinity, seed)``; ``path`` may also be ``(label, V, F)``, a mesh
+        already in memory (nothing is read; errors start with ``label``).
 
     Returns
     -------
@@ -47,7 +50,10 @@ def describe_file(item) -> tuple[np.ndarray, float]:
     from geoshape.retrieval.descriptors import compute_descriptor
 
     path, name, affinity, seed = item
-    V, F = load_mesh(path)
+    if isinstance(path, tuple):
+        path, V, F = path
+    else:
+        V, F = load_mesh(path)
     if len(F) == 0:
         raise InvalidMeshError(f"{path}: has no faces (a triangle mesh is needed)")
     t0 = time.perf_counter()
@@ -69,7 +75,8 @@ def compute_descriptors(paths, name: str, *, affinity: str | None = None, seed: 
 
     Parameters
     ----------
-    paths : sequence of path
+    paths : sequence of path or mesh
+        Mesh files, or meshes in memory (trimesh / Open3D / pymeshlab / ``(V, F)``).
     name : str
         Registered descriptor (:data:`geoshape.retrieval.descriptors.MESH_DESCRIPTORS`).
     affinity, seed
@@ -87,9 +94,19 @@ def compute_descriptors(paths, name: str, *, affinity: str | None = None, seed: 
     from geoshape.retrieval.descriptors import descriptor_params
 
     descriptor_params(name, affinity, seed)  # options checked before any work
-    items = [(str(p), name, affinity, seed) for p in paths]
+    items = [(_source(p, i), name, affinity, seed) for i, p in enumerate(paths)]
     return run_map(describe_file, items, backend=backend, n_jobs=n_jobs, scheduler=scheduler,
                    desc=name, progress=progress, on_error="return")
+
+
+def _source(item, i: int):
+    """What :func:`describe_file` takes: a path as text, or ``(label, V, F)`` for a mesh object."""
+    from geoshape.io.interop import as_arrays, is_mesh_object
+
+    if is_mesh_object(item):
+        label = f"mesh {i}"
+        return (label, *as_arrays(item, name=label, allow_no_faces=True, min_vertices=1))
+    return str(item)
 
 
 def _raise_failures(paths, results) -> None:
@@ -110,7 +127,8 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
 
     Parameters
     ----------
-    paths : sequence of path
+    paths : sequence of path or mesh
+        As :func:`compute_descriptors`.
     method : str
         One of :data:`geoshape.retrieval.descriptors.RETRIEVAL_METHODS` (a descriptor, or
         ``"evd_ccd"``: EVD, then each query's top ``rerank_k`` re-ranked by CCD).
@@ -141,7 +159,9 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
     names = RERANKERS.get(method, (method,))
     for nm in names:
         descriptor_params(nm, affinity, seed)
-    paths = [Path(p) for p in paths]
+    from geoshape.io.interop import is_mesh_object
+
+    paths = [p if is_mesh_object(p) else Path(p) for p in paths]
     t0 = time.perf_counter()
     descs, per_mesh = {}, {}
     for nm in names:

@@ -35,6 +35,7 @@ import numpy as np
 
 from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -215,6 +216,7 @@ def embedding_from_affinity(A: np.ndarray, k: int = 5, *, scaling: str = "sqrt",
     return SpectralEmbedding(scale_eigenvectors(U, lam, scaling), lam, params)
 
 
+@mesh_input
 def spectral_embedding(V, F=None, k: int = 5, *, method: str = "auto",
                        n_samples: int | None = None, affinity: str = "geodesic",
                        sigma="max", geodesics: str = "graph", scaling: str = "sqrt",

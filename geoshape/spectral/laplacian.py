@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoshape.errors import InvalidMeshError, InvalidOptionError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 
@@ -43,6 +44,7 @@ class LaplacianBasis:
 EIGSH_TOL = 1e-8
 
 
+@mesh_input
 def laplacian_basis(V, F, k: int = 100, *, name: str = "mesh") -> LaplacianBasis:
     """Compute the ``k`` lowest Laplace–Beltrami eigenpairs.
 

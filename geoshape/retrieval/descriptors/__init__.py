@@ -1,8 +1,9 @@
 """Global 3D shape descriptors, their registry and their distances (thesis §4.4, §4.6.2).
 
 Every descriptor is a function on one mesh ``(V, F) -> array`` registered in
-:data:`MESH_DESCRIPTORS` with the metric it is compared with. The registry is what the CLI,
-the index and the benchmark list.
+:data:`MESH_DESCRIPTORS` with the metric it is compared with; each also takes one trimesh /
+Open3D / pymeshlab mesh in place of ``V, F`` (:func:`geoshape.io.interop.mesh_input`).
+The registry is what the CLI, the index and the benchmark list.
 
 On the original mesh
     ``d2`` (Osada et al. 2002 shape distribution), ``shapedna`` (Reuter et al. 2006,
@@ -43,6 +44,7 @@ import numpy as np
 from geoshape._options import check_choice
 from geoshape.distances import chi2_distances
 from geoshape.errors import InvalidOptionError
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 from geoshape.parallel import single_thread_blas
 
@@ -83,6 +85,7 @@ DESCRIPTOR_VERSION = 3  # 3: EVD with 500 samples (was 300)
 # ---------------------------------------------------------------------------------------
 
 
+@mesh_input
 def embedding_mesh(V, F, *, affinity: str = DEFAULT_AFFINITY, seed: int = 0,
                    method: str = "auto") -> np.ndarray:
     """Vertices of the 3D spectral embedding: 2nd–4th √λ-scaled eigenvectors (same faces).
@@ -126,6 +129,7 @@ def _pairwise_surface_distances(V, F, n_pairs: int, seed: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 
 
+@mesh_input
 def d2_descriptor(V, F, *, n_pairs: int = 20000, bins: int = 64, max_ratio: float = 4.0,
                   seed: int = 0) -> np.ndarray:
     """D2 shape distribution: histogram of distances between random surface points.
@@ -161,6 +165,7 @@ def d2_descriptor(V, F, *, n_pairs: int = 20000, bins: int = 64, max_ratio: floa
     return h / h.sum()
 
 
+@mesh_input
 def shapedna_descriptor(V, F, *, k: int = 20) -> np.ndarray:
     """ShapeDNA: the first ``k`` non-zero Laplace–Beltrami eigenvalues of the unit-area mesh.
 
@@ -182,6 +187,7 @@ def shapedna_descriptor(V, F, *, k: int = 20) -> np.ndarray:
     return evals / np.arange(1, k + 1)
 
 
+@mesh_input
 def gsv_descriptor(V, F, *, n_samples: int = 60, k: int = 20, seed: int = 0) -> np.ndarray:
     """Singular values of the Nyström geodesic distance matrix (sample block).
 
@@ -214,6 +220,7 @@ def gsv_descriptor(V, F, *, n_samples: int = 60, k: int = 20, seed: int = 0) -> 
     return np.linalg.svd(B, compute_uv=False)[:k]
 
 
+@mesh_input
 def ccd_descriptor(V, F, *, affinity: str = DEFAULT_AFFINITY, n_points: int = CCD_POINTS,
                    k: int = CCD_DIMS, seed: int = 0) -> np.ndarray:
     """The CCD "descriptor": ``n_points`` farthest points of the √λ-scaled k-D embedding.
@@ -310,6 +317,7 @@ class DescriptorSpec:
         return self.domain in ("embedding", "spectral")
 
 
+@mesh_input
 def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0, config="quadrature"):
     from geoshape.retrieval.descriptors.evd import evd_descriptor
 
@@ -319,18 +327,21 @@ def _evd(V, F, *, affinity=DEFAULT_AFFINITY, seed=0, config="quadrature"):
 _evd_thesis = functools.partial(_evd, config="thesis")
 
 
+@mesh_input
 def _evd_heat(V, F, *, seed=0):
     from geoshape.retrieval.descriptors.evd import evd_descriptor
 
     return evd_descriptor(V, F, config="heat")
 
 
+@mesh_input
 def _shd(V, F, *, seed=0):
     from geoshape.retrieval.descriptors.shd import shd_descriptor
 
     return shd_descriptor(V, F, seed=seed)
 
 
+@mesh_input
 def _lfd(V, F, *, seed=0):
     from geoshape.retrieval.descriptors.lfd import lfd_descriptor
 
@@ -410,6 +421,7 @@ def params_key(params: dict) -> str:
     return json.dumps(params, sort_keys=True, separators=(",", ":"))
 
 
+@mesh_input
 def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: int = 0,
                        check: bool = True) -> np.ndarray:
     """Compute registered descriptor ``name`` of one mesh.

@@ -37,6 +37,7 @@ import numpy as np
 from geoshape.distances import chi2_distances
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import vertex_areas
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["EVD_N_EIGENVALUES", "EVD_N_SAMPLES", "EVD_CONFIGS", "EVD_CONFIG_NAMES", "evd_descriptor",
@@ -58,6 +59,7 @@ AREA_SIGMA = 0.1
 CUTOFF_SIGMAS = 6.0
 
 
+@mesh_input
 def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD_N_EIGENVALUES,
                    n_samples: int | None = None, affinity: str = "geodesic", sigma=None,
                    weighting: str | None = None, geodesics: str = "graph", p: int = 1,

@@ -29,6 +29,7 @@ import numpy as np
 
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import face_areas
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -256,6 +257,7 @@ def silhouette_features(mask: np.ndarray, *, zernike_order: int = ZERNIKE_ORDER,
     return np.concatenate([Z, FOURIER_WEIGHT * _fourier_features(mask, n_fourier)])
 
 
+@mesh_input
 def lfd_descriptor(V, F, *, n_fields: int = LFD_FIELDS, resolution: int = LFD_RESOLUTION,
                    seed: int = 0) -> np.ndarray:
     """Light field descriptor: silhouette features from 10 dodecahedron views, several fields.

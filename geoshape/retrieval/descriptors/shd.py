@@ -23,6 +23,7 @@ import numpy as np
 
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import face_areas
+from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
 __all__ = ["surface_samples", "normalize_surface", "shd_descriptor", "SHD_SHELLS", "SHD_LMAX"]
@@ -34,6 +35,7 @@ SHD_POINTS = 6000
 SHD_RADIUS = 2.5
 
 
+@mesh_input
 def surface_samples(V, F, n_points: int, seed: int = 0) -> np.ndarray:
     """Area-weighted uniform random points on the triangles of a mesh.
 
@@ -91,6 +93,7 @@ def normalize_surface(P: np.ndarray) -> np.ndarray:
     return Q / rms
 
 
+@mesh_input
 def shd_descriptor(V, F, *, n_shells: int = SHD_SHELLS, l_max: int = SHD_LMAX,
                    n_points: int = SHD_POINTS, radius: float = SHD_RADIUS,
                    seed: int = 0) -> np.ndarray:
