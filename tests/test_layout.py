@@ -15,8 +15,9 @@ import tomllib
 ROOT = Path(__file__).resolve().parents[1]
 
 #: Rank of each part of the library: a module may import only from lower ranks or its own
-#: package. Shared helpers (rank 0) may use each other, and so may the layers on top (rank 7);
+#: package. Shared helpers (rank 0) may use each other, and so may the layers on top (TOP);
 #: parts of one rank in between (2D contour vs 3D correspondence) stay independent.
+TOP = 8
 RANK = {
     "__init__": 0, "errors": 0, "_options": 0, "distances": 0, "parallel": 0,
     "io": 1,
@@ -25,9 +26,10 @@ RANK = {
     "contour": 4, "correspondence": 4,
     "retrieval": 5,
     "plot": 6,
-    "cli": 7, "bench": 7, "__main__": 7,
+    "viewer": 7,  # HTML pages, with the colours of plot
+    "cli": TOP, "bench": TOP, "__main__": TOP,
 }
-TOP_LAYERS = {"geoshape_plugins": 7, "geoshape_datasets_gen": 7}
+TOP_LAYERS = {"geoshape_plugins": TOP, "geoshape_datasets_gen": TOP}
 
 
 def _part(module: str) -> str | None:
@@ -69,7 +71,7 @@ def test_imports_flow_one_way():
             if target is None or target == own:
                 continue
             rank = RANK.get(target, TOP_LAYERS.get(target))
-            if rank is None or rank > RANK[own] or (rank == RANK[own] and rank not in (0, 7)):
+            if rank is None or rank > RANK[own] or (rank == RANK[own] and rank not in (0, TOP)):
                 wrong.append(f"{path.relative_to(ROOT)}:{line} ({own}) imports {module} ({target})")
     assert not wrong, "imports against the layering of docs/architecture.md:\n" + "\n".join(wrong)
 
@@ -121,3 +123,6 @@ def test_wheel_installs_specific_names_only(tmp_path):
     assert "geoshape/py.typed" in names
     assert "geoshape/correspondence/fmaps/zoomout.py" in names
     assert "geoshape_plugins/meshset.py" in names
+    # the viewer's package data: its page and the three.js files it inlines
+    assert {"geoshape/viewer/template.html", "geoshape/viewer/vendor/three.min.js",
+            "geoshape/viewer/vendor/OrbitControls.js", "geoshape/viewer/vendor/LICENSE"} <= set(names)

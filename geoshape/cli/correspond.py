@@ -32,9 +32,12 @@ def register(subparsers) -> None:
     _add_method(p)
     p.add_argument("--plot", metavar="FIG.png", help="picture: source coloured through the map, target")
     p.add_argument("--ply", metavar="COLORED.ply", help="source mesh coloured through the map")
+    p.add_argument("--html", metavar="VIEW.html",
+                   help="offline interactive viewer (one file): both meshes, linked camera, colours "
+                   "through the map, click a vertex to mark its image")
     p.add_argument("--json", action="store_true", help="print timings, cost and alternatives as JSON")
     p.set_defaults(handler=run_single)
-    declare_outputs(p, out="text", plot="picture", ply="mesh")
+    declare_outputs(p, out="text", plot="picture", ply="mesh", html="html")
 
     b = subparsers.add_parser("correspond-batch", help="correspondences for every pair of a pairs.csv",
                               description="For every pair in DIR/pairs.csv write "
@@ -69,6 +72,13 @@ def run_single(args: argparse.Namespace) -> int:
         from geoshape.plot.correspondence import transferred_colors
 
         save_mesh(args.ply, V1, F1, colors=transferred_colors(V2, result.p2p_12)[0])
+    if args.html:
+        from geoshape.io.datasets import mesh_stem
+        from geoshape.viewer.html import correspondence_html, write_html
+
+        write_html(args.html, correspondence_html(
+            V1, F1, V2, F2, result.p2p_12, names=(mesh_stem(args.source), mesh_stem(args.target)),
+            subtitle=f"method {result.method}, cost {result.cost:.4g}, {result.timings['total']:.2f} s"))
     summary = {"source": args.source, "target": args.target, "method": result.method,
                "n_source": len(V1), "n_target": len(V2), "cost": result.cost,
                "seconds": result.timings.get("total"), "timings": result.timings,

@@ -49,9 +49,12 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=SEED, default=0, help="seed of the first max-min sample")
     p.add_argument("--png", metavar="FILE.png", default=None,
                    help="also render the mesh coloured by the first embedding coordinate")
+    p.add_argument("--html", metavar="VIEW.html", default=None,
+                   help="offline interactive viewer (one file): the mesh and the embedded mesh, "
+                   "coloured by the embedding coordinates")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(handler=run)
-    declare_outputs(p, output="mesh", png="picture")
+    declare_outputs(p, output="mesh", png="picture", html="html")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -84,6 +87,13 @@ def run(args: argparse.Namespace) -> int:
     out = save_embedding_mesh(args.output, emb.coords, F)
     if args.png:
         render_mesh_png(args.png, V, F, emb.coords[:, 0], title="embedding coordinate 1")
+    if args.html:
+        from geoshape.io.datasets import mesh_stem
+        from geoshape.viewer.html import embedding_html, write_html
+
+        write_html(args.html, embedding_html(
+            V, F, emb.coords, name=mesh_stem(args.mesh),
+            subtitle=f"{emb.coords.shape[1]} coordinates, {args.affinity} affinity, {seconds:.2f} s"))
     params = {k: v for k, v in emb.params.items() if k != "samples"}
     result = {
         "mesh": args.mesh,

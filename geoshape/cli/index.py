@@ -61,8 +61,11 @@ def register(subparsers) -> None:
     q.add_argument("--json", action="store_true", help="print the results as JSON")
     q.add_argument("--plot-strip", metavar="strip.png", default=None,
                    help="also draw the query and its results in one row")
+    q.add_argument("--html", metavar="VIEW.html", default=None,
+                   help="offline interactive viewer (one file): the query and its results side by "
+                   "side, linked camera, names and distances")
     q.set_defaults(handler=run_query)
-    declare_outputs(q, plot_strip="picture")
+    declare_outputs(q, plot_strip="picture", html="html")
 
     r = sub.add_parser("prune", help="delete the rows of files that no longer exist")
     r.add_argument("db", metavar="DB")
@@ -153,6 +156,15 @@ def run_query(args) -> int:
         plot_query_strip((V, F), [load_mesh(h.path) for h in hits], args.plot_strip,
                          query_title=mesh_stem(args.mesh),
                          titles=[f"{mesh_stem(h.path)}\n{h.distance:.3g}" for h in hits])
+    if args.html:
+        from geoshape.io.datasets import mesh_stem
+        from geoshape.viewer.html import query_html, write_html
+
+        rerank = f", re-ranked by {args.rerank}" if args.rerank else ""
+        write_html(args.html, query_html(
+            (V, F), [load_mesh(h.path) for h in hits], query_name=mesh_stem(args.mesh),
+            names=[mesh_stem(h.path) for h in hits], scores=[h.distance for h in hits],
+            subtitle=f"{args.descriptor} distances{rerank}, index {Path(args.db).name}"))
     if args.json:
         print_json({"query": str(Path(args.mesh)), "descriptor": args.descriptor,
                     "rerank": args.rerank, **timing,

@@ -23,8 +23,11 @@ def register(subparsers) -> None:
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours with lines between matches")
+    p.add_argument("--html", metavar="VIEW.html",
+                   help="offline interactive viewer (one file): both contours, matched points "
+                   "coloured alike, click a point to mark its match")
     p.set_defaults(handler=run)
-    declare_outputs(p, out="text", plot="picture")
+    declare_outputs(p, out="text", plot="picture", html="html")
 
 
 def run(args) -> int:
@@ -53,9 +56,17 @@ def run(args) -> int:
 
         title = f"{Path(args.image_a).name} ↔ {Path(args.image_b).name}  ({args.method}, cost {cost:.4g})"
         plot_contour_matching(P, Q, p2p, args.plot, title=title)
+    if args.html:
+        from pathlib import Path
+
+        from geoshape.viewer.html import contour_matching_html, write_html
+
+        write_html(args.html, contour_matching_html(
+            P, Q, p2p, names=(Path(args.image_a).name, Path(args.image_b).name),
+            subtitle=f"method {args.method}, cost {cost:.4g}, {len(P)} points"))
     distinct = len(np.unique(p2p))
     print(f"method {args.method}: cost {cost:.6g}, {len(p2p)} points matched to {distinct} distinct points")
-    for label, value in (("pairs", args.out), ("plot", args.plot)):
+    for label, value in (("pairs", args.out), ("plot", args.plot), ("viewer", args.html)):
         if value:
             print(f"{label}: {value}")
     return 0

@@ -25,6 +25,7 @@ OUTPUT_KINDS: dict[str, tuple[str, ...] | None] = {
     "npy": ("npy",),
     "text": None,
     "folder": None,
+    "html": ("html", "htm"),  # geoshape.viewer pages
 }
 
 
@@ -40,7 +41,7 @@ def check_output_path(path: str | os.PathLike, kind: str, *, option: str = "outp
     path : str or PathLike
         The output file (or, for ``kind="folder"``, the output folder, created later if absent).
     kind : str
-        One of :data:`OUTPUT_KINDS`: ``picture``, ``mesh``, ``npy``, ``text``, ``folder``.
+        One of :data:`OUTPUT_KINDS`: ``picture``, ``mesh``, ``npy``, ``text``, ``folder``, ``html``.
     option : str
         How the output is named in the message (e.g. ``--plot``).
 
