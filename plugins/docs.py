@@ -53,10 +53,10 @@ def filters_markdown() -> str:
         "MeshLab-style filters on a `geoshape_plugins.MeshSet` (`ms.<id>(**params)`), in `.mlx` scripts "
         "(`<filter id=\"<id>\" name=\"<display name>\">`) and with "
         "`geoshape run -i A.ply [-i B.ply] -o OUT.ply -s SCRIPT.mlx`. Scripts may mix them "
-        "with PyMeshLab's filters (by Python name or MeshLab display name); PyMeshLab filters "
-        "get every parameter passed explicitly and are recorded in full in saved scripts. "
-        "Parameters a script or call leaves out take PyMeshLab's current value, which PyMeshLab "
-        "itself sets to the last value used in the process: give them all for reproducible runs.",
+        "with PyMeshLab's filters (by Python name or MeshLab display name, current or old), which "
+        "are recorded in full in saved scripts; a parameter left out takes MeshLab's default, "
+        "never a value from an earlier call. Scripts written by MeshLab 1.3 to 2023 and by hand: "
+        "see [mlx.md](mlx.md).",
         "",
         "| id | name | meshes | categories |",
         "|---|---|---|---|",

@@ -182,6 +182,16 @@ class MeshSet:
         self.current_index = 0
         self.history: list[AppliedFilter] = []
         self.progress = progress or no_progress
+        self._twin = None
+
+    @property
+    def pymeshlab_twin(self):
+        """The :class:`~geoshape_plugins.pymeshlab_bridge.PyMeshLabTwin` PyMeshLab filters run on."""
+        if self._twin is None:
+            from geoshape_plugins.pymeshlab_bridge import PyMeshLabTwin
+
+            self._twin = PyMeshLabTwin()
+        return self._twin
 
     # ---- meshes -------------------------------------------------------------------
     @mesh_input
@@ -269,6 +279,8 @@ class MeshSet:
         self._check_preconditions(f)
         values = resolve_params(f, params, self)
         t0 = time.perf_counter()
+        if self._twin is not None:
+            self._twin.invalidate()  # geoshape filters may change meshes in place
         outputs = f.apply(self, values, self.progress) or {}
         seconds = time.perf_counter() - t0
         script = ScriptFilter(
@@ -277,13 +289,14 @@ class MeshSet:
         self.history.append(AppliedFilter(script, outputs, seconds, "geoshape"))
         return outputs
 
-    def _apply_pymeshlab(self, name: str, params: dict, where: str = "", line: int = 0) -> dict:
+    def _apply_pymeshlab(self, name: str, params: dict | None, where: str = "", line: int = 0,
+                         script: list[ScriptParam] | None = None) -> dict:
         from geoshape_plugins.pymeshlab_bridge import apply_pymeshlab_filter
 
         if not self.meshes:
             raise FilterError(f"filter {name!r} needs a mesh: the MeshSet is empty")
         t0 = time.perf_counter()
-        outputs, record = apply_pymeshlab_filter(self, name, params, where=where)
+        outputs, record = apply_pymeshlab_filter(self, name, params, script=script, where=where)
         record.line = line
         self.history.append(AppliedFilter(record, outputs, time.perf_counter() - t0, "pymeshlab"))
         return outputs
@@ -311,7 +324,7 @@ class MeshSet:
         list of AppliedFilter, one per filter of the script.
         """
         from geoshape_plugins.mlx import FilterScriptError
-        from geoshape_plugins.pymeshlab_bridge import resolve_pymeshlab_name
+        from geoshape_plugins.pymeshlab_bridge import closest_filter_names, resolve_pymeshlab_name
 
         if isinstance(script, (str, os.PathLike)):
             source = source or str(script)
@@ -324,9 +337,11 @@ class MeshSet:
                 f = find_filter(sf.name)
             if f is None and resolve_pymeshlab_name(sf.key) is None:
                 alt = f" (name {sf.name!r})" if sf.id and sf.name else ""
+                close = closest_filter_names(sf.key)
+                hint = f"; closest known names: {', '.join(repr(c) for c in close)}" if close else ""
                 raise FilterScriptError(
                     f"{source}:{sf.line}: unknown filter {sf.key!r}{alt}: neither a geoshape filter "
-                    "(see 'geoshape filters') nor a PyMeshLab filter"
+                    f"(see 'geoshape filters') nor a PyMeshLab filter{hint}"
                 )
             plan.append((sf, f))
         start = len(self.history)
@@ -335,10 +350,7 @@ class MeshSet:
             if f is not None:
                 self._apply_geoshape(f, self._script_params(f, sf, where), sf.line)
             else:
-                from geoshape_plugins.pymeshlab_bridge import script_value
-
-                values = {p.name: script_value(p.attrs, f"{where} {p.name}") for p in sf.params}
-                self._apply_pymeshlab(sf.key, values, where, sf.line)
+                self._apply_pymeshlab(sf.key, None, where, sf.line, script=sf.params)
         return self.history[start:]
 
     @staticmethod

@@ -12,11 +12,12 @@ Format (MeshLab's)::
 geoshape writes its own filters with their stable id as well:
 ``<filter id="spectral_correspondence" name="Spectral Correspondence">``; on reading, ``id``
 takes precedence over ``name`` (MeshLab keys scripts by display name, which breaks them
-when a name changes). Reading is lenient: attributes that are not needed to run a filter
-(MeshLab's ``tooltip``, ``description``, ``isxmlparam``…) are ignored with one warning
-per script; ``<xmlfilter>``/``<xmlparam>`` elements of MeshLab's XML filters are read
-like ``<filter>``/``<Param>``. Malformed XML raises :class:`FilterScriptError` with the
-line number.
+when a name changes). Reading is lenient: MeshLab's documentation attributes (``tooltip``,
+``description``, ``isxmlparam``, ``isxmlfilter``…, entities decoded) are skipped silently,
+other attributes and elements not needed to run a filter are ignored with one warning per
+script; ``<xmlfilter>``/``<xmlparam>`` elements of MeshLab 2016's XML filters are read
+like ``<filter>``/``<Param>`` (without a ``type``, a value takes the type of the filter's
+default). Malformed XML raises :class:`FilterScriptError` with the line number.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ class FilterScriptError(FilterError):
 _PARAM_ATTRS = {"name", "type", "value", "x", "y", "z", "r", "g", "b", "a", "min", "max",
                 "enum_cardinality"}
 _FILTER_ATTRS = {"name", "id"}
+#: attributes MeshLab writes for people, not for running the filter (skipped silently)
+_DOC_ATTRS = {"tooltip", "description", "isxmlparam", "isxmlfilter", "category", "help"}
 
 
 @dataclass
@@ -119,7 +122,7 @@ def parse_mlx(text: str | bytes, source: str = "<script>") -> list[ScriptFilter]
         elif tag in ("filter", "xmlfilter"):
             if not (attrs.get("name") or attrs.get("id")):
                 raise FilterScriptError(f"{source}:{line}: <{tag}> has neither 'name' nor 'id'")
-            ignored.update(k for k in attrs if k not in _FILTER_ATTRS)
+            ignored.update(k for k in attrs if k not in _FILTER_ATTRS | _DOC_ATTRS)
             f = ScriptFilter(attrs.get("id") or None, attrs.get("name") or None, [], line)
             filters.append(f)
             state["current"] = f
@@ -128,7 +131,7 @@ def parse_mlx(text: str | bytes, source: str = "<script>") -> list[ScriptFilter]
                 raise FilterScriptError(f"{source}:{line}: <{tag}> outside a <filter>")
             if "name" not in attrs:
                 raise FilterScriptError(f"{source}:{line}: <{tag}> has no 'name'")
-            ignored.update(k for k in attrs if not _is_param_attr(k))
+            ignored.update(k for k in attrs if not _is_param_attr(k) and k not in _DOC_ATTRS)
             kept = {k: v for k, v in attrs.items() if _is_param_attr(k)}
             state["current"].params.append(ScriptParam(attrs["name"], kept, line))
         else:

@@ -126,3 +126,5 @@ def test_wheel_installs_specific_names_only(tmp_path):
     # the viewer's package data: its page and the three.js files it inlines
     assert {"geoshape/viewer/template.html", "geoshape/viewer/vendor/three.min.js",
             "geoshape/viewer/vendor/OrbitControls.js", "geoshape/viewer/vendor/LICENSE"} <= set(names)
+    # the plugins' recorded PyMeshLab table (display names, XML names, fresh defaults)
+    assert "geoshape_plugins/data/pymeshlab_filters.json" in names

@@ -30,6 +30,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("reliability", "geoshape.bench.reliability"),
     ("rerank", "geoshape.bench.rerank"),
     ("decimate", "geoshape.bench.decimate"),
+    ("mlx", "geoshape.bench.mlx"),
 ]
 
 
