@@ -76,7 +76,9 @@ def run(args) -> int:
             print(f"{script.name}: {same}", file=sys.stderr)
     table = markdown_table(["script", "filters", "geoshape V / F", "PyMeshLab's own loader",
                             "geoshape compared with", "same mesh", "warnings / error"], rows)
-    text = (f"{len(scripts)} scripts (`{Path(args.scripts).name}`), {len(scripts) - failures} run through "
+    text = (f"## MeshLab .mlx scripts: geoshape run vs PyMeshLab's own loader\n\n"
+            f"`geoshape bench mlx`: {len(scripts)} scripts (`{Path(args.scripts).name}`), "
+            f"{len(scripts) - failures} run through "
             "`geoshape run` with PyMeshLab's result; \"refuses\" rows are scripts of older MeshLab versions "
             "that PyMeshLab's own loader stops on.\n\n" + table)
     print(text)
