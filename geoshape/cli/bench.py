@@ -31,6 +31,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("rerank", "geoshape.bench.rerank"),
     ("decimate", "geoshape.bench.decimate"),
     ("mlx", "geoshape.bench.mlx"),
+    ("index", "geoshape.bench.index"),
 ]
 
 

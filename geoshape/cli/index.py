@@ -4,7 +4,10 @@
 batch in one SQLite transaction; unchanged files (same path, content hash, descriptor and
 parameters) are skipped, so an interrupted run resumes where it stopped. A file that cannot
 be read or described is named on stderr and skipped; the exit code is then 1.
-``query`` ranks the stored shapes against a mesh (optionally re-ranking by CCD).
+``query`` ranks the stored shapes against a mesh (optionally re-ranking by CCD, or by
+diffusion over the stored k-nearest-neighbour graph: ``--rerank lcdp``). Vector descriptors
+are searched through a memory-mapped sidecar (``DB.ann/``): exactly by brute force, or
+through an IVF above 8 million stored values (``--search``).
 """
 
 from __future__ import annotations
@@ -53,9 +56,16 @@ def register(subparsers) -> None:
     q.add_argument("--top", type=POSITIVE_INT, default=10, help="number of results (default 10)")
     q.add_argument("--descriptor", default="evd", metavar="NAME", help="ranking descriptor (default evd)")
     q.add_argument("--rerank", default=None, metavar="NAME",
-                   help="re-rank the shortlist by this descriptor (ccd)")
+                   help="re-rank the shortlist by a second stored descriptor (ccd), or by a diffusion "
+                   "method (lcdp) over the stored k-nearest-neighbour graph (built on first use, then "
+                   "kept up to date by add and prune)")
     q.add_argument("--rerank-k", type=POSITIVE_INT, default=None, metavar="K",
                    help="shortlist size for re-ranking (default max(top, 20))")
+    q.add_argument("--search", default="auto", metavar="MODE",
+                   help="auto (default: exact brute force over the sidecar, IVF above 8 million stored "
+                   "values), brute (always exact), ivf (approximate), memory (no sidecar)")
+    q.add_argument("--nprobe", type=POSITIVE_INT, default=None, metavar="N",
+                   help="IVF lists scanned (default max(8, lists / 32))")
     q.add_argument("--affinity", default=None, metavar="KIND")
     q.add_argument("--seed", type=SEED, default=0)
     q.add_argument("--json", action="store_true", help="print the results as JSON")
@@ -83,7 +93,7 @@ def _usage(parser) -> int:
     return 2
 
 
-def _open(path, must_exist: bool):
+def _open(path, must_exist: bool, **options):
     from pathlib import Path
 
     from geoshape.errors import DatasetError
@@ -91,7 +101,7 @@ def _open(path, must_exist: bool):
 
     if must_exist and not Path(path).is_file():
         raise DatasetError(f"{path}: no such index")
-    return ShapeIndex(path)
+    return ShapeIndex(path, **options)
 
 
 def run_add(args) -> int:
@@ -138,14 +148,17 @@ def run_add(args) -> int:
 def run_query(args) -> int:
     from pathlib import Path
 
+    from geoshape._options import check_choice
     from geoshape.cli._common import print_json
     from geoshape.io.mesh_io import load_mesh
     from geoshape.retrieval.descriptors import get_descriptor
+    from geoshape.retrieval.index import SEARCH_MODES, check_rerank
 
     get_descriptor(args.descriptor)
     if args.rerank:
-        get_descriptor(args.rerank)
-    with _open(args.db, must_exist=True) as idx:
+        check_rerank(args.rerank)
+    check_choice("search", args.search, SEARCH_MODES)
+    with _open(args.db, must_exist=True, search=args.search, nprobe=args.nprobe) as idx:
         V, F = load_mesh(args.mesh)
         hits, timing = idx.query_mesh(V, F, args.descriptor, top=args.top, affinity=args.affinity,
                                       seed=args.seed, rerank=args.rerank, rerank_k=args.rerank_k)

@@ -28,9 +28,32 @@ Robustness
 - **Missing files.** A query never returns a file that no longer exists;
   :meth:`ShapeIndex.prune` deletes its rows (``geoshape index prune``).
 
-Queries load the stored descriptors of one (descriptor, parameters) set into memory once
-(re-loaded when the index changes) and rank them with the descriptor's metric: a top-10
-query over 10,000 EVD rows is a vectorised χ² plus a partial sort.
+Search
+------
+Descriptors that are fixed-length vectors with a vector distance (χ², L1, L2: ``evd``,
+``d2``, ``shapedna``, ``gsv``, ``shd`` …) are searched through a *sidecar*: one file per
+(descriptor, parameters) set in the folder ``DB.ann`` beside the database, holding the rows
+as a memory-mapped float64 matrix, a float32 embedding whose distances bound the
+descriptor's from below, an IVF (k-means lists) and, once diffusion re-ranking has asked
+for it, the k-nearest-neighbour graph (:mod:`geoshape.retrieval.ann`). ``search="auto"``
+answers exactly by certified brute force up to :data:`IVF_MIN_VALUES` stored values (N x d)
+and through the IVF (approximate, recall measured by ``geoshape bench index``) above.
+
+The sidecar is a cache of the SQLite rows, never the truth. Triggers log every insert,
+replacement and deletion of a row in the table ``changes`` (a global ``AUTOINCREMENT``
+sequence), whatever process or version of geoshape writes; the *version* of a set is the
+last sequence number that touched it. A sidecar records the index's id and the version it
+mirrors; one of an older version is brought up to date from the logged changes (new rows
+appended, deleted and changed ones dropped, the graph updated), one that cannot be (another
+index, a newer version, log entries already trimmed) is rebuilt from SQLite. Sidecars are
+written to a temporary file and renamed under a file lock, so readers never see half of
+one and two writers never both rebuild; ``add`` and ``prune`` refresh the sidecars of the
+sets they change and trim the log up to the version saved. A folder that cannot be written
+only costs speed: the sidecar is then kept in memory.
+
+Descriptors that are not vectors (CCD, LFD), or ``search="memory"``, load the stored
+descriptors of one set into memory once (re-loaded when the index changes) and rank them
+with the descriptor's metric: O(N) descriptor distances per query.
 """
 
 from __future__ import annotations
@@ -39,6 +62,7 @@ import contextlib
 import hashlib
 import json
 import os
+import shutil
 import socket
 import sqlite3
 import time
@@ -52,15 +76,25 @@ from geoshape.errors import DatasetError, InvalidOptionError
 from geoshape.io.interop import mesh_input
 
 __all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs",
-           "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION"]
+           "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION", "SEARCH_MODES", "IVF_MIN_VALUES",
+           "rerank_choices", "check_rerank"]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: sets, changes and the triggers that log every change of entries
 #: ``PRAGMA application_id`` of a geoshape index (the bytes "GSHP")
 APPLICATION_ID = 0x47534850
 #: Seconds after which a claim of a process on another host is considered abandoned.
 CLAIM_LIFETIME = 3600.0
 #: descriptors stored by ``index add`` when none is named: EVD to rank, CCD to re-rank
 DEFAULT_INDEX_DESCRIPTORS = ("evd", "ccd")
+#: how queries search: ``auto`` (exact brute force over the sidecar, IVF above
+#: :data:`IVF_MIN_VALUES`), ``brute`` (always exact), ``ivf`` (always the IVF), ``memory``
+#: (no sidecar: every stored descriptor loaded from SQLite, O(N) distances)
+SEARCH_MODES = ("auto", "brute", "ivf", "memory")
+#: ``search="auto"`` uses the IVF above this many stored values (rows x descriptor length):
+#: 400,000 EVD rows; exact brute force costs about 4 ms there (``geoshape bench index``)
+IVF_MIN_VALUES = 8_000_000
+#: diffusion re-ranking gathers the shortlist's neighbours and theirs from the stored graph
+DIFFUSION_HOPS = 2
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -85,7 +119,33 @@ CREATE TABLE IF NOT EXISTS claims (
     since REAL NOT NULL,
     PRIMARY KEY (path, descriptor, params)
 );
+CREATE TABLE IF NOT EXISTS sets (
+    id INTEGER PRIMARY KEY,
+    descriptor TEXT NOT NULL,
+    params TEXT NOT NULL,
+    floor INTEGER NOT NULL DEFAULT 0,
+    UNIQUE (descriptor, params)
+);
+CREATE TABLE IF NOT EXISTS changes (
+    seq INTEGER PRIMARY KEY AUTOINCREMENT,
+    set_id INTEGER NOT NULL,
+    path TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS changes_by_set ON changes (set_id, seq);
 """
+
+# Every change of a row is logged with its set (created on first use: a plain INSERT guarded
+# by NOT EXISTS, since an outer INSERT OR REPLACE would turn an INSERT OR IGNORE in a trigger
+# into a REPLACE that renumbers the set). ``floor``: log entries up to it were trimmed.
+_LOG = """INSERT INTO sets (descriptor, params) SELECT {r}.descriptor, {r}.params
+        WHERE NOT EXISTS (SELECT 1 FROM sets WHERE descriptor = {r}.descriptor AND params = {r}.params);
+    INSERT INTO changes (set_id, path) SELECT id, {r}.path FROM sets
+        WHERE descriptor = {r}.descriptor AND params = {r}.params;"""
+_TRIGGERS = [
+    f"CREATE TRIGGER IF NOT EXISTS entries_log_{event.lower()} AFTER {event} ON entries BEGIN {body} END"
+    for event, body in (("INSERT", _LOG.format(r="NEW")), ("DELETE", _LOG.format(r="OLD")),
+                        ("UPDATE", _LOG.format(r="OLD") + " " + _LOG.format(r="NEW")))
+]
 
 
 def file_sha256(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
@@ -178,6 +238,13 @@ class ShapeIndex:
         The database file (created if missing).
     timeout : float
         Seconds to wait for a lock held by another writer.
+    search : {"auto", "brute", "ivf", "memory"}
+        How queries of vector descriptors search (:data:`SEARCH_MODES`).
+    nprobe : int or None
+        IVF lists scanned per query (default ``max(8, lists / 32)``).
+    min_scan : int or None
+        An IVF query scans at least this many rows (default
+        :data:`geoshape.retrieval.ann.MIN_SCAN`; smaller sets are searched exactly).
 
     Examples
     --------
@@ -187,7 +254,15 @@ class ShapeIndex:
     >>> idx.query_mesh(V, F, "evd", top=10)  # doctest: +SKIP
     """
 
-    def __init__(self, path: str | os.PathLike, *, timeout: float = 60.0):
+    def __init__(self, path: str | os.PathLike, *, timeout: float = 60.0, search: str = "auto",
+                 nprobe: int | None = None, min_scan: int | None = None):
+        from geoshape._options import check_choice
+        from geoshape.retrieval.ann import MIN_SCAN
+
+        self.search_mode = check_choice("search", search, SEARCH_MODES)
+        self.nprobe = nprobe
+        self.min_scan = MIN_SCAN if min_scan is None else int(min_scan)
+        self.timeout = timeout
         self.path = Path(path)
         if self.path.parent and not self.path.parent.exists():
             raise DatasetError(f"{self.path}: folder {self.path.parent} does not exist")
@@ -216,6 +291,7 @@ class ShapeIndex:
                 self._abandon()
                 raise
         self._cache: dict = {}
+        self._vectors_cache: dict = {}  # params key -> (version, VectorSet or None when ragged)
 
     def _set_up(self) -> None:
         """Check that the file is a geoshape index (or empty), then create the schema.
@@ -236,7 +312,12 @@ class ShapeIndex:
                 self._created = True
             for statement in filter(str.strip, _SCHEMA.split(";")):
                 conn.execute(statement)
-            conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+            for statement in _TRIGGERS:
+                conn.execute(statement)
+            conn.execute("INSERT INTO meta VALUES ('schema_version', ?) ON CONFLICT (key) DO UPDATE "
+                         "SET value = excluded.value WHERE CAST(value AS INTEGER) < ?",
+                         (str(SCHEMA_VERSION), SCHEMA_VERSION))
+            conn.execute("INSERT OR IGNORE INTO meta VALUES ('index_id', ?)", (os.urandom(16).hex(),))
         except BaseException:
             self._created = False
             _rollback(conn)
@@ -273,9 +354,11 @@ class ShapeIndex:
             self._remove_files()
 
     def _remove_files(self) -> None:
-        """Delete the database file and SQLite's companions of it (WAL, shared memory, journal)."""
+        """Delete the database file, SQLite's companions of it (WAL, shared memory, journal)
+        and the folder of vector sidecars."""
         for suffix in ("", "-wal", "-shm", "-journal"):
             Path(str(self.path) + suffix).unlink(missing_ok=True)
+        shutil.rmtree(self._sidecar_folder(), ignore_errors=True)
 
     def __enter__(self):
         return self
@@ -395,8 +478,11 @@ class ShapeIndex:
         gone = [p for p in paths if _is_gone(p)]
         if gone:
             with self._writing() as conn:
+                sets = conn.execute("SELECT DISTINCT descriptor, params FROM entries").fetchall()
                 conn.executemany("DELETE FROM entries WHERE path = ?", [(p,) for p in gone])
             self._cache.clear()
+            for descriptor, pkey in sets:
+                self._refresh_sidecar(descriptor, pkey)
         return gone
 
     # -- adding --------------------------------------------------------------------------
@@ -522,8 +608,178 @@ class ShapeIndex:
                 if cluster is not None:
                     cluster.close()
         self._cache.clear()
+        if report.added:
+            for nm in wanted:
+                self._refresh_sidecar(nm, pkeys[nm])
         report.seconds = time.perf_counter() - t0
         return report
+
+    # -- vector sidecars (see the module docstring and geoshape.retrieval.ann) ------------
+    @contextlib.contextmanager
+    def _reading(self):
+        """One read transaction: every SELECT inside sees the same committed state."""
+        self._conn.execute("BEGIN")
+        try:
+            yield self._conn
+        finally:
+            with contextlib.suppress(sqlite3.Error):
+                self._conn.execute("COMMIT")
+
+    def _set_version(self, descriptor: str, pkey: str) -> tuple[int | None, int, int]:
+        """``(set id, version, floor)`` of a set: version = the last logged change of its rows
+        (0 when none was logged), floor = the log of the set is complete after it."""
+        row = self._conn.execute("SELECT id, floor FROM sets WHERE descriptor = ? AND params = ?",
+                                 (descriptor, pkey)).fetchone()
+        if row is None:
+            return None, 0, 0
+        last = self._conn.execute("SELECT MAX(seq) FROM changes WHERE set_id = ?", (row[0],)).fetchone()[0]
+        return int(row[0]), max(int(last or 0), int(row[1])), int(row[1])
+
+    def _index_id(self) -> str:
+        row = self._conn.execute("SELECT value FROM meta WHERE key = 'index_id'").fetchone()
+        return row[0] if row else ""
+
+    def _sidecar_folder(self) -> Path:
+        return Path(str(self.path) + ".ann")
+
+    def _sidecar_path(self, descriptor: str, pkey: str) -> Path:
+        return self._sidecar_folder() / f"{descriptor}-{hashlib.sha256(pkey.encode()).hexdigest()[:16]}.vec"
+
+    def _load_sidecar(self, descriptor: str, pkey: str, index_id: str):
+        """The sidecar file of a set if it is whole and belongs to this index and set."""
+        from geoshape.retrieval.ann import VectorSet
+
+        try:
+            vs = VectorSet.load(self._sidecar_path(descriptor, pkey))
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        m = vs.meta
+        if (m.get("index_id"), m.get("descriptor"), m.get("params")) != (index_id, descriptor, pkey):
+            return None
+        return vs
+
+    def _vectors(self, descriptor: str, pkey: str, *, graph: bool = False, persist: bool = True,
+                 trim: bool = False):
+        """The up-to-date :class:`~geoshape.retrieval.ann.VectorSet` of a set, or None for a set
+        that is not searched through a sidecar (not a vector metric, ragged shapes, or
+        ``search="memory"``). ``graph``: with its k-nearest-neighbour graph. ``persist``: save
+        it (under the file lock); ``trim``: then drop the log up to the saved version."""
+        from geoshape.retrieval.ann import VECTOR_METRICS, file_lock
+        from geoshape.retrieval.descriptors import get_descriptor
+
+        if self.search_mode == "memory" or get_descriptor(descriptor).metric not in VECTOR_METRICS:
+            return None
+        with self._reading():
+            set_id, version, floor = self._set_version(descriptor, pkey)
+            index_id = self._index_id()
+
+        def usable(vs):
+            return (vs is not None and vs.meta.get("index_id") == index_id and vs.version == version
+                    and (vs.has_graph or not graph))
+
+        cached = self._vectors_cache.get(pkey)
+        if cached is not None and cached[0] == (index_id, version) and cached[1] is None:
+            return None  # ragged at this version
+        vs = cached[1] if cached is not None else None
+        if usable(vs) and not trim:
+            return vs
+        disk = self._load_sidecar(descriptor, pkey, index_id)
+        if usable(disk) and not trim:
+            self._vectors_cache[pkey] = ((index_id, version), disk)
+            return disk
+        folder = self._sidecar_folder()
+        try:
+            if persist:
+                folder.mkdir(exist_ok=True)
+        except OSError:
+            persist = False
+        lock = file_lock(folder / ".lock", self.timeout) if persist else contextlib.nullcontext(False)
+        with lock as locked:
+            if locked:  # another process may have brought it up to date meanwhile
+                disk = self._load_sidecar(descriptor, pkey, index_id)
+            # the base to bring up to date: one that can be, keeping a graph once there is one
+            bases = [b for b in (vs, disk) if b is not None and b.meta.get("index_id") == index_id]
+            base = max(bases, key=lambda b: (floor <= b.version <= version, b.has_graph, b.version),
+                       default=None)
+            out, version = self._synced(descriptor, pkey, base)
+            if out is not None and graph and not out.has_graph:
+                out.build_graph()
+            key = (index_id, version)
+            self._vectors_cache[pkey] = (key, out)
+            if out is None or not locked:
+                return out
+            saved = disk is not None and disk.version == out.version and (disk.has_graph or not out.has_graph)
+            if not saved:
+                try:
+                    out.save(self._sidecar_path(descriptor, pkey))
+                    saved = True
+                except OSError:
+                    pass
+        if saved and trim and set_id is not None:
+            with contextlib.suppress(DatasetError):
+                with self._writing() as conn:
+                    conn.execute("DELETE FROM changes WHERE set_id = ? AND seq <= ?", (set_id, out.version))
+                    conn.execute("UPDATE sets SET floor = MAX(floor, ?) WHERE id = ?", (out.version, set_id))
+        return out
+
+    def _synced(self, descriptor: str, pkey: str, base):
+        """``(VectorSet or None, version)``: ``base`` brought up to the current version from
+        the logged changes, or the set rebuilt from SQLite when ``base`` cannot be."""
+        from geoshape.retrieval.ann import VectorSet
+        from geoshape.retrieval.descriptors import get_descriptor
+
+        with self._reading() as conn:
+            set_id, version, floor = self._set_version(descriptor, pkey)
+            index_id = self._index_id()
+            if base is not None and floor <= base.version <= version:
+                if base.version == version:
+                    return base, version
+                changed = [r[0] for r in conn.execute(
+                    "SELECT DISTINCT path FROM changes WHERE set_id = ? AND seq > ?", (set_id, base.version))]
+                rows = []
+                for s in range(0, len(changed), 500):
+                    chunk = changed[s : s + 500]
+                    rows += conn.execute(
+                        f"SELECT path, shape, data FROM entries WHERE descriptor = ? AND params = ? "
+                        f"AND path IN ({', '.join('?' * len(chunk))}) ORDER BY path",
+                        (descriptor, pkey, *chunk)).fetchall()
+                full = False
+            else:
+                rows = conn.execute("SELECT path, shape, data FROM entries WHERE descriptor = ? "
+                                    "AND params = ? ORDER BY path", (descriptor, pkey)).fetchall()
+                full = True
+        if full and not rows:
+            return None, version
+        shapes = {r[1] for r in rows}
+        shape = json.loads(rows[0][1]) if rows else (base.meta["shape"] if base is not None else [])
+        if len(shapes) > 1 or (not full and base is not None and rows and shape != base.meta["shape"]):
+            if full:
+                return None, version
+            return self._synced(descriptor, pkey, None)  # a row of another shape: rebuild (ragged)
+        X = np.frombuffer(b"".join(r[2] for r in rows), dtype=np.float64).reshape(
+            len(rows), -1 if rows else base.d)
+        paths = [r[0] for r in rows]
+        if full:
+            meta = {"index_id": index_id, "descriptor": descriptor, "params": pkey, "version": version,
+                    "metric": get_descriptor(descriptor).metric, "shape": shape}
+            return VectorSet.build(meta, paths, X), version
+        return base.updated(changed, paths, X, version), version
+
+    def _refresh_sidecar(self, descriptor: str, pkey: str) -> None:
+        """Bring a set's sidecar up to date after this process changed the set (best effort: a
+        failure only means the next query does it)."""
+        with contextlib.suppress(OSError, sqlite3.Error, DatasetError, ValueError):
+            self._vectors(descriptor, pkey, persist=True, trim=True)
+
+    def vector_set(self, descriptor: str, *, affinity: str | None = None, seed: int = 0,
+                   graph: bool = False):
+        """The up-to-date sidecar of a stored vector descriptor set (for benchmarks and
+        inspection), or None when that set is searched in memory."""
+        from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
+
+        spec = get_descriptor(descriptor)
+        pkey = params_key(descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed))
+        return self._vectors(descriptor, pkey, graph=graph)
 
     # -- querying ------------------------------------------------------------------------
     def _state(self) -> tuple:
@@ -570,7 +826,8 @@ class ShapeIndex:
 
     def query_descriptor(self, q, descriptor: str, *, top: int = 10, affinity: str | None = None,
                          seed: int = 0, rerank: str | None = None, rerank_q=None,
-                         rerank_k: int | None = None, skip_missing: bool = False) -> list[Hit]:
+                         rerank_k: int | None = None, skip_missing: bool = False,
+                         nprobe: int | None = None) -> list[Hit]:
         """Rank the stored shapes against a query descriptor already computed.
 
         Parameters
@@ -583,13 +840,17 @@ class ShapeIndex:
         affinity, seed
             Select the stored parameter set (as when adding).
         rerank : str or None
-            A second descriptor (``"ccd"``) re-ranking the first ``rerank_k`` hits; its
-            query descriptor is ``rerank_q``.
+            Re-rank the first ``rerank_k`` hits either by a second stored descriptor
+            (``"ccd"``; its query descriptor is ``rerank_q``) or by a diffusion method of
+            :mod:`geoshape.retrieval.rerank` (``"lcdp"``) over the stored k-nearest-neighbour
+            graph (see Notes). :func:`rerank_choices` lists the names.
         rerank_k : int or None
             Shortlist size; default ``max(top, 20)``.
         skip_missing : bool
             Never return a file that no longer exists (only the shortlist is checked on disk;
             meshes added from memory are always returned).
+        nprobe : int or None
+            IVF lists scanned (``ivf`` search); default the index's.
 
         Returns
         -------
@@ -597,43 +858,127 @@ class ShapeIndex:
 
         Notes
         -----
-        O(M d) for M stored descriptors of size d (χ²/L1/L2), plus O(M) for the partial
-        sort; re-ranking adds ``rerank_k`` CCD evaluations.
+        Vector descriptors (sidecar): exact brute force O(N d) float32 + a few hundred exact
+        distances; IVF O(√N d + scanned rows x d). Others: O(M) descriptor distances plus
+        O(M) for the partial sort. Re-ranking by a descriptor adds ``rerank_k`` of its
+        distances. Diffusion: the shortlist, its neighbours in the stored graph and theirs
+        (:data:`DIFFUSION_HOPS` hops of the method's ``k`` neighbours, so at most
+        ``1 + rerank_k (1 + k + k²)`` items: 421 for the defaults) with the query form a local
+        collection whose all-pairs matrix (O(L² d)) is re-ranked (O(L² k iterations)) and
+        the query's row re-scores the shortlist; a few ms. The graph is built on the first
+        such query of a set (all pairs, O(N² d) float32 BLAS, pruned by IVF lists above
+        20,000 rows) and then kept up to date by ``add`` and ``prune`` (O(N d) per changed
+        row). Descriptors without a sidecar (CCD, LFD) use the shortlist alone as the local
+        collection.
         """
-        from geoshape.retrieval.descriptors import descriptor_distances, descriptor_params, get_descriptor
+        from geoshape.retrieval.descriptors import (
+            descriptor_distances,
+            descriptor_params,
+            get_descriptor,
+            params_key,
+        )
+        from geoshape.retrieval.rerank import RERANK_METHODS
 
         if not isinstance(top, (int, np.integer)) or top < 1:
             raise InvalidOptionError(f"top must be a positive integer, got {top!r}")
+        if rerank is not None:
+            check_rerank(rerank)
+        diffusion = rerank in RERANK_METHODS
         spec = get_descriptor(descriptor)
         params = descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed)
-        paths, X = self.load(descriptor, params)
-        d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
-        m = len(paths)
-        k = min(m, max(top, rerank_k or 20) if rerank else top)
-        cand = _nearest_first(d, k)
-        if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
+        vs = self._vectors(descriptor, params_key(params), graph=diffusion)
+        want = max(top, rerank_k or 20) if rerank else top
+        if vs is None:
+            paths, X = self.load(descriptor, params)
+            d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
+            m = len(paths)
+            k = min(m, want)
+            cand = _nearest_first(d, k)
+            if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
+                while True:
+                    present = [i for i in cand if not _is_gone(paths[i])]
+                    if len(present) >= k or len(cand) == m:
+                        break
+                    cand = _nearest_first(d, min(m, 2 * len(cand) + k))
+                if not present:
+                    raise DatasetError(f"{self.path}: none of the stored files exists any more "
+                                       "(run 'geoshape index prune')")
+                cand = np.asarray(present[:k], dtype=np.int64)
+            short = [(paths[i], float(d[i])) for i in cand]
+            rows = [X[i] for i in cand]
+        else:
+            mode = self.search_mode
+            if mode == "auto":
+                mode = "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
+            k = min(vs.n, want)
+            asked = k
             while True:
-                present = [i for i in cand if not _is_gone(paths[i])]
-                if len(present) >= k or len(cand) == m:
+                pos, dist = vs.search(q, asked, mode=mode, nprobe=nprobe or self.nprobe,
+                                      min_scan=self.min_scan)
+                if not skip_missing:
                     break
-                cand = _nearest_first(d, min(m, 2 * len(cand) + k))
-            if not present:
+                present = [j for j, p in enumerate(pos.tolist()) if not _is_gone(vs.path(p))]
+                if len(present) >= k or asked >= vs.n:
+                    pos, dist = pos[present], dist[present]
+                    break
+                asked = min(vs.n, 2 * asked + k)
+            if skip_missing and not len(pos):
                 raise DatasetError(f"{self.path}: none of the stored files exists any more "
                                    "(run 'geoshape index prune')")
-            cand = np.asarray(present[:k], dtype=np.int64)
+            pos, dist = pos[:k], dist[:k]
+            short = [(vs.path(p), float(x)) for p, x in zip(pos.tolist(), dist.tolist(), strict=True)]
+            rows = None
         if not rerank:
-            return [Hit(r + 1, paths[i], float(d[i])) for r, i in enumerate(cand[:top])]
+            return [Hit(r + 1, p, x) for r, (p, x) in enumerate(short[:top])]
+        if diffusion:
+            return self._diffusion_rerank(q, descriptor, rerank, short, top,
+                                          vs=vs, pos=pos if vs is not None else None, rows=rows)
         rspec = get_descriptor(rerank)
         rparams = descriptor_params(rerank, affinity if rspec.uses_affinity else None, seed)
         rpaths, RX = self.load(rerank, rparams)
         where = {p: i for i, p in enumerate(rpaths)}
-        keep = [i for i in cand if paths[i] in where]
+        keep = [(p, x) for p, x in short if p in where]
         if rerank_q is None:
             raise InvalidOptionError(f"re-ranking by {rerank!r} needs the query's {rerank} descriptor")
-        rd = descriptor_distances(rerank, [rerank_q], [RX[where[paths[i]]] for i in keep])[0]
+        rd = descriptor_distances(rerank, [rerank_q], [RX[where[p]] for p, _ in keep])[0]
         order = np.lexsort((np.arange(len(keep)), rd))
-        return [Hit(r + 1, paths[keep[o]], float(rd[o]), float(d[keep[o]]))
-                for r, o in enumerate(order[:top])]
+        return [Hit(r + 1, keep[o][0], float(rd[o]), keep[o][1]) for r, o in enumerate(order[:top])]
+
+    def _diffusion_rerank(self, q, descriptor: str, method: str, short, top: int, *, vs, pos, rows):
+        """Re-score the shortlist ``short`` by ``method`` over a local collection: the query,
+        the shortlist and (with a sidecar) its stored graph neighbours up to
+        :data:`DIFFUSION_HOPS` hops."""
+        from geoshape.retrieval.ann import GRAPH_K, pair_distances
+        from geoshape.retrieval.descriptors import descriptor_distances
+        from geoshape.retrieval.rerank import RERANK_DEFAULTS
+        from geoshape.retrieval.rerank import rerank as diffuse
+
+        if len(short) < 2:  # fewer than 3 items with the query: nothing to diffuse over
+            return [Hit(r + 1, p, 0.0, x) for r, (p, x) in enumerate(short[:top])]
+        k = RERANK_DEFAULTS[method]["k"]
+        if vs is not None:
+            local = [int(p) for p in pos]
+            seen = set(local)
+            frontier = np.asarray(local, dtype=np.int64)
+            for _ in range(DIFFUSION_HOPS):
+                nb = np.asarray(vs.nbr[frontier, : min(k, GRAPH_K)]).ravel()
+                fresh = [int(j) for j in dict.fromkeys(nb[nb >= 0].tolist()) if j not in seen]
+                seen.update(fresh)
+                local += fresh
+                frontier = np.asarray(fresh, dtype=np.int64)
+                if not fresh:
+                    break
+            Z = np.vstack([np.asarray(q, dtype=np.float64).reshape(1, -1),
+                           np.asarray(vs.X[np.asarray(local, dtype=np.int64)])])
+            D = pair_distances(vs.metric, Z[:, None, :], Z[None, :, :])
+        else:
+            Z = [q, *rows]
+            D = descriptor_distances(descriptor, Z, Z)
+        R = diffuse(D, method)
+        score = R[0, 1 : 1 + len(short)]
+        first = np.asarray([x for _, x in short])
+        order = np.lexsort((np.arange(len(short)), first, score))
+        return [Hit(r + 1, short[o][0], float(score[o]), float(first[o])) for r, o in enumerate(order[:top])]
 
     @mesh_input
     def query_mesh(self, V, F, descriptor: str = "evd", *, top: int = 10,
@@ -642,6 +987,8 @@ class ShapeIndex:
         """Describe a mesh and rank the stored shapes against it.
 
         ``V, F`` may be replaced by one trimesh / Open3D / pymeshlab mesh (vertex order kept).
+        ``rerank``: a second descriptor (``"ccd"``) or a diffusion method (``"lcdp"``), see
+        :meth:`query_descriptor`.
 
         Returns
         -------
@@ -651,14 +998,17 @@ class ShapeIndex:
         """
         from geoshape.parallel import single_thread_blas
         from geoshape.retrieval.descriptors import compute_descriptor, get_descriptor
+        from geoshape.retrieval.rerank import RERANK_METHODS
 
         t0 = time.perf_counter()
         spec = get_descriptor(descriptor)
+        if rerank is not None:
+            check_rerank(rerank)
         with single_thread_blas():  # small dense eigenproblems: threads only spin
             q = compute_descriptor(V, F, descriptor, seed=seed,
                                    affinity=affinity if spec.uses_affinity else None)
             rq = None
-            if rerank:
+            if rerank and rerank not in RERANK_METHODS:
                 rspec = get_descriptor(rerank)
                 rq = compute_descriptor(V, F, rerank, seed=seed,
                                         affinity=affinity if rspec.uses_affinity else None)
@@ -668,6 +1018,22 @@ class ShapeIndex:
                                      skip_missing=skip_missing)
         t2 = time.perf_counter()
         return hits, {"seconds_descriptor": t1 - t0, "seconds_search": t2 - t1}
+
+
+def rerank_choices() -> tuple[str, ...]:
+    """What ``rerank=`` / ``index query --rerank`` accepts: a stored descriptor, or a
+    diffusion method of :mod:`geoshape.retrieval.rerank`."""
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS
+    from geoshape.retrieval.rerank import RERANK_METHODS
+
+    return (*MESH_DESCRIPTORS, *RERANK_METHODS)
+
+
+def check_rerank(name: str) -> str:
+    """``name`` if :func:`rerank_choices` has it, else :class:`InvalidOptionError` listing them."""
+    from geoshape._options import check_choice
+
+    return check_choice("re-ranking", name, rerank_choices())
 
 
 def _split_inputs(inputs, names, report: AddReport) -> tuple[list, list[_MemoryMesh]]:
