@@ -38,6 +38,7 @@ __all__ = [
     "Template",
     "Figure",
     "make_skeleton",
+    "limb_groups",
     "build_template",
     "random_pose",
     "pose_vertices",
@@ -220,6 +221,15 @@ _BUILDERS = {
     "snake": _snake,
     "octopus": _octopus,
 }
+
+
+def limb_groups(cls: str) -> list[str]:
+    """The limb group of every joint of a class's skeleton (e.g. ``"arm"``, ``"leg"``), in
+    joint order: the groups whose length and thickness vary together."""
+    check_choice("figure class", cls, CLASSES)
+    b = _Builder()
+    _BUILDERS[cls](b)
+    return list(b.limbs)
 
 
 def make_skeleton(cls: str, *, seed: int | None = None, variation: float = 0.15) -> Skeleton:

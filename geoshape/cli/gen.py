@@ -7,6 +7,14 @@
 - ``gen stretch MESH (--scale SX,SY,SZ | --radius R --factor S) --out OUT.off``: same ids.
 - ``gen articulated --out DIR [--classes …] [--instances K] [--poses N] [--seed S]``: posed
   procedural figures with ``labels.csv`` and ``pairs.csv`` (identity ground truth).
+- ``gen mixed3d --out DIR [--per-class 12] [--seed S] [--vertices N]``: a retrieval collection
+  of 10 articulated and 10 rigid classes with ``labels.csv`` (some meshes with defects).
+- ``gen remesh MESH --vertices N --seed S --out DIR``: an independently remeshed copy
+  ``DIR/<stem>.off`` with ``<stem>.to_original.vts`` / ``<stem>.from_original.vts``.
+- ``gen remesh-set --dataset NAME|DIR [--pairs N] --vertices N --seed S --out DIR``: both
+  meshes of every pair remeshed independently, composed ground truth, ``pairs.csv``.
+- ``gen nonisometric --out DIR [--pairs N] [--seed S]``: one template in two body
+  proportions (long/short arms, heavy/slim), posed; exact ground truth, ``pairs.csv``.
 
 Every file is written atomically.
 """
@@ -112,6 +120,30 @@ def register(subparsers) -> None:
     a.set_defaults(handler=run_articulated)
     declare_outputs(a, all_or_nothing=False, out="folder")
 
+    x = sub.add_parser(
+        "mixed3d",
+        help="retrieval collection: 10 articulated + 10 rigid classes, re-tessellated, some with defects",
+        description="Articulated creatures (human, teddy, hand, ant, octopus, fourleg, fish, bird, "
+        "pliers, armadillo: instances x 3 poses) and rigid objects (cup, vase, bottle, chair, table, "
+        "spring, gear, bearing, airplane, glasses: fused primitives), each re-tessellated to about "
+        "--vertices vertices, randomly rotated, scaled and moved; about --defects of them with holes, "
+        "flipped faces, several components or a mild axis stretch. Writes DIR/<class>_<k>.off, "
+        "labels.csv (file,label), defects.csv, generator.json and README.txt.",
+    )
+    x.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    x.add_argument("--per-class", type=RangeType(int, 1, 300), default=12,
+                   help="meshes per class (default 12)")
+    x.add_argument("--classes", default=None, help="comma-separated classes (default: all 20)")
+    x.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
+    x.add_argument("--vertices", type=RangeType(int, 300, 50000), default=2000,
+                   help="typical vertices per mesh, each drawn in x[0.75, 1.3] (default 2000)")
+    x.add_argument("--defects", type=RangeType(float, 0.0, 1.0), default=0.1,
+                   help="fraction of meshes with a defect (default 0.1)")
+    x.add_argument("--resolution", type=RangeType(int, 48, 320), default=112,
+                   help="voxels along the longest side when polygonising (default 112)")
+    x.set_defaults(handler=run_mixed3d)
+    declare_outputs(x, all_or_nothing=False, out="folder")
+
     q = sub.add_parser(
         "perturb2d",
         help="a perturbed copy of a labelled silhouette folder: mirror, noise, notch or erode",
@@ -125,6 +157,7 @@ def register(subparsers) -> None:
     q.add_argument("--out", required=True, metavar="OUT_DIR", help="output folder")
     q.set_defaults(handler=run_perturb2d)
     declare_outputs(q, all_or_nothing=False, out="folder")
+    _register_dev_sets(sub)
 
 
 def _missing_generator(args: argparse.Namespace) -> int:
@@ -249,6 +282,20 @@ def run_articulated(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_mixed3d(args: argparse.Namespace) -> int:
+    from geoshape_datasets_gen.mixed3d import CLASSES, write_collection
+
+    classes = CLASSES if args.classes is None else [c.strip() for c in args.classes.split(",") if c.strip()]
+    res = write_collection(
+        args.out, classes=classes, per_class=args.per_class, seed=args.seed, vertices=args.vertices,
+        defect_fraction=args.defects, resolution=args.resolution,
+    )
+    n_def = sum(d != "none" for d in res["defects"])
+    print(f"{args.out}: {len(res['files'])} meshes in {len(set(res['labels']))} classes, {n_def} with "
+          f"defects (labels.csv, defects.csv, README.txt), {res['seconds']:.1f} s")
+    return 0
+
+
 def run_perturb2d(args: argparse.Namespace) -> int:
     from geoshape_datasets_gen.perturb2d import PERTURBATIONS, perturb_collection
 
@@ -257,4 +304,129 @@ def run_perturb2d(args: argparse.Namespace) -> int:
     check_choice("perturbation", args.kind, PERTURBATIONS)
     paths = perturb_collection(args.folder, args.out, args.kind, seed=args.seed)
     print(f"{args.out}: {len(paths)} {args.kind} silhouettes with labels.csv")
+    return 0
+
+
+# ----------------------------------------------------------------------- dev sets (issue #14)
+
+
+def _register_dev_sets(sub) -> None:
+    vertices = RangeType(int, 50, 1_000_000)  # remesh.MIN_VERTICES, MAX_VERTICES (no import at startup)
+    r = sub.add_parser(
+        "remesh",
+        help="an independently remeshed copy of a mesh, with ground truth to the original",
+        description="Isotropic remeshing of a randomly rotated, shuffled and slid copy (the seed "
+        "changes the triangulation), decimated to N vertices and put back on the original "
+        "surface. DIR/<stem>.to_original.vts: line i = 1-based original vertex of new vertex i "
+        "(nearest corner of the original face holding it); DIR/<stem>.from_original.vts: line v "
+        "= 1-based new vertex of original vertex v.",
+    )
+    r.add_argument("mesh", metavar="MESH")
+    r.add_argument("--vertices", type=vertices, default=5000, help="vertex count (default 5000)")
+    r.add_argument("--seed", type=SEED, default=0, help="seed of the triangulation (default 0)")
+    r.add_argument("--iterations", type=RangeType(int, 1, 50), default=6,
+                   help="isotropic remeshing rounds (default 6)")
+    r.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    r.set_defaults(handler=run_remesh)
+    declare_outputs(r, out="folder")
+
+    s = sub.add_parser(
+        "remesh-set",
+        help="a correspondence set with both meshes of every pair remeshed independently",
+        description="Each mesh of the chosen pairs is remeshed once with its own seed; the ground "
+        "truth is composed: remeshed source vertex -> original source vertex -> the dataset's "
+        "ground truth -> original target vertex -> remeshed target vertex. Writes meshes/, "
+        "maps/, gt/, pairs.csv (and pairs_features.csv for SCAPE), labels.csv, generator.json.",
+    )
+    s.add_argument("--dataset", required=True,
+                   help="dataset folder or set name under the data folder (scape, tosca_r5k, …)")
+    s.add_argument("--pairs", type=POSITIVE_INT, default=None,
+                   help="number of pairs (default all rows of the pairs file; more than it lists: "
+                   "identity sets only, extra seeded random pairs)")
+    s.add_argument("--pairs-file", default=None,
+                   help="pairs file in the dataset (default pairs_subset.csv if present, else pairs.csv)")
+    s.add_argument("--vertices", type=vertices, default=5000, help="vertices per mesh (default 5000)")
+    s.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
+    s.add_argument("--iterations", type=RangeType(int, 1, 50), default=6,
+                   help="isotropic remeshing rounds (default 6)")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder (outside the dataset)")
+    s.set_defaults(handler=run_remesh_set)
+    declare_outputs(s, all_or_nothing=False, out="folder")
+
+    n = sub.add_parser(
+        "nonisometric",
+        help="non-isometric pairs: one template in two body proportions, exact ground truth",
+        description="Pairs of long-armed vs short-armed bipeds and heavy vs slim quadrupeds: one "
+        "articulated template per pair re-proportioned (limb lengths and thicknesses) and posed "
+        "twice; same vertex ids and faces, so vertex i corresponds to vertex i.",
+    )
+    n.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    n.add_argument("--pairs", type=RangeType(int, 1, 10000), default=30, help="number of pairs (default 30)")
+    n.add_argument("--classes", default="biped,quadruped",
+                   help="comma-separated classes (default: %(default)s)")
+    n.add_argument("--templates", type=RangeType(int, 1, 100), default=3,
+                   help="templates (instances) per class the pairs cycle over (default 3)")
+    n.add_argument("--seed", type=SEED, default=0, help="seed (default 0)")
+    n.add_argument("--vertices", type=RangeType(int, 500, 50000), default=5000,
+                   help="vertices per mesh (default 5000)")
+    n.add_argument("--resolution", type=RangeType(int, 48, 320), default=128,
+                   help="voxels along the longest side before polygonisation (default 128)")
+    n.add_argument("--variation", type=RangeType(float, 0.0, 0.3), default=0.1,
+                   help="proportion variation between templates of a class (default 0.1)")
+    n.add_argument("--jitter", type=RangeType(float, 0.0, 0.2), default=0.04,
+                   help="log-normal spread of each family's factors per pair (default 0.04)")
+    n.add_argument("--amount", type=RangeType(float, 0.0, 1.0), default=1.0,
+                   help="fraction of the joint limits used by random poses (default 1)")
+    n.set_defaults(handler=run_nonisometric)
+    declare_outputs(n, all_or_nothing=False, out="folder")
+
+
+def run_remesh(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from geoshape_datasets_gen.remesh import nearest_surface_vertex, remesh
+
+    from geoshape.io.atomic import write_text_atomic
+    from geoshape.io.datasets import mesh_stem
+    from geoshape.io.mesh_io import load_mesh, save_mesh
+
+    V, F = load_mesh(args.mesh)
+    res = remesh(V, F, args.vertices, args.seed, iterations=args.iterations)
+    from_orig = nearest_surface_vertex(V, res.V, res.F)
+    out, stem = Path(args.out), mesh_stem(args.mesh)
+    save_mesh(out / f"{stem}.off", res.V, res.F)
+    for suffix, ids in (("to_original", res.to_original), ("from_original", from_orig)):
+        write_text_atomic(out / f"{stem}.{suffix}.vts", "".join(f"{i + 1}\n" for i in ids.tolist()))
+    print(f"{out / (stem + '.off')}: {len(res.V)} vertices, {len(res.F)} faces (from {len(V)}); "
+          f"{stem}.to_original.vts: new -> original vertex (1-based, mean distance "
+          f"{float(res.distance.mean()):.4g}); {stem}.from_original.vts: original -> new vertex")
+    return 0
+
+
+def run_remesh_set(args: argparse.Namespace) -> int:
+    from geoshape_datasets_gen.remesh import write_remeshed_set
+
+    res = write_remeshed_set(
+        args.dataset, args.out, n_pairs=args.pairs, pairs_file=args.pairs_file,
+        n_vertices=args.vertices, seed=args.seed, iterations=args.iterations,
+        progress=lambda done, total, name: print(f"[{done}/{total}] {name}", flush=True),
+    )
+    extra = " and pairs_features.csv" if res["features"] else ""
+    landmarks = [p[2] for p in res["pairs"]]
+    print(f"{args.out}: {len(res['meshes'])} remeshed meshes, {len(res['pairs'])} pairs (pairs.csv{extra}), "
+          f"{min(landmarks)}-{max(landmarks)} ground-truth landmarks per pair")
+    return 0
+
+
+def run_nonisometric(args: argparse.Namespace) -> int:
+    from geoshape_datasets_gen.nonisometric import write_nonisometric_set
+
+    classes = [c.strip() for c in args.classes.split(",") if c.strip()]
+    res = write_nonisometric_set(
+        args.out, n_pairs=args.pairs, classes=classes, templates=args.templates, seed=args.seed,
+        target_vertices=args.vertices, resolution=args.resolution, variation=args.variation,
+        jitter=args.jitter, amount=args.amount,
+    )
+    print(f"{args.out}: {len(res['files'])} meshes, {len(res['pairs'])} pairs with exact identity ground "
+          f"truth (pairs.csv, corres/*.vts, labels.csv)")
     return 0
