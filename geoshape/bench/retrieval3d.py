@@ -46,11 +46,11 @@ def _methods(args):
 
 
 def _runs(methods, affinities):
-    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RERANKERS
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, method_descriptors
 
     out = []
     for m in methods:
-        names = RERANKERS.get(m, (m,))
+        names = method_descriptors(m)
         if any(MESH_DESCRIPTORS[n].uses_affinity for n in names):
             out += [(m, a) for a in affinities]
         else:
@@ -134,7 +134,7 @@ def run(args) -> int:
     from geoshape.bench.results import default_results_path, update_results_section
     from geoshape.io.datasets import dataset_dir
     from geoshape.plot.retrieval import plot_precision_recall
-    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RERANKERS
+    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, method_descriptors
     from geoshape.retrieval.meshes import retrieval3d_on_folder
 
     methods = _methods(args)
@@ -166,7 +166,7 @@ def run(args) -> int:
                 res = retrieval3d_on_folder(folder, m, affinity=aff, n_jobs=args.n_jobs,
                                             progress=False)
                 met = res["metrics"]
-                names = RERANKERS.get(m, (m,))
+                names = method_descriptors(m)
                 domain = "/".join(sorted({MESH_DESCRIPTORS[n].domain for n in names}))
                 per = " + ".join(f"{res['seconds_per_mesh'][n]:.3f}" for n in names)
                 state["rows"].append([set_name, m, domain, aff or "-", met["nearest_neighbor"],

@@ -32,6 +32,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("decimate", "geoshape.bench.decimate"),
     ("mlx", "geoshape.bench.mlx"),
     ("index", "geoshape.bench.index"),
+    ("fusion", "geoshape.bench.fusion"),
 ]
 
 

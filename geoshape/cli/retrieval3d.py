@@ -23,7 +23,9 @@ def register(subparsers) -> None:
         description="DIR holds meshes and labels.csv (columns file,label). Computes one "
         "descriptor per mesh (in parallel), the N x N dissimilarity matrix in labels.csv "
         "row order (--matrix), and NN, FT, ST, E, DCG, mAP and timings (--json). "
-        f"Descriptors — {listing}; evd_ccd: EVD, then each query's top K re-ranked by CCD.",
+        f"Descriptors — {listing}; evd_ccd: EVD, then each query's top K re-ranked by CCD; "
+        "fused: evd_heat, shapedna and lfd matrices fused query-adaptively (cross-validated "
+        "weights, geoshape.retrieval.fusion).",
     )
     p.add_argument("folder", metavar="DIR", help="folder with meshes and labels.csv")
     p.add_argument("--descriptor", required=True, metavar="NAME",
@@ -57,11 +59,16 @@ def run(args) -> int:
     from geoshape.cli._common import to_jsonable
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
     from geoshape.parallel import BACKENDS
-    from geoshape.retrieval.descriptors import RERANKERS, RETRIEVAL_METHODS, descriptor_params
+    from geoshape.retrieval.descriptors import (
+        RERANKERS,
+        RETRIEVAL_METHODS,
+        descriptor_params,
+        method_descriptors,
+    )
     from geoshape.retrieval.meshes import DEFAULT_RERANK_K, retrieval3d_on_folder
 
     check_choice("descriptor", args.descriptor, RETRIEVAL_METHODS)
-    for nm in RERANKERS.get(args.descriptor, (args.descriptor,)):
+    for nm in method_descriptors(args.descriptor):
         descriptor_params(nm, args.affinity, args.seed)
     if args.backend is not None:
         check_choice("backend", args.backend, BACKENDS)

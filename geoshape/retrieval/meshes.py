@@ -130,8 +130,11 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
     paths : sequence of path or mesh
         As :func:`compute_descriptors`.
     method : str
-        One of :data:`geoshape.retrieval.descriptors.RETRIEVAL_METHODS` (a descriptor, or
-        ``"evd_ccd"``: EVD, then each query's top ``rerank_k`` re-ranked by CCD).
+        One of :data:`geoshape.retrieval.descriptors.RETRIEVAL_METHODS` (a descriptor;
+        ``"evd_ccd"``: EVD, then each query's top ``rerank_k`` re-ranked by CCD; ``"fused"``:
+        the all-pairs matrices of its components fused by
+        :func:`geoshape.retrieval.fusion.fuse_distances` with
+        :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS`).
     affinity, seed, backend, n_jobs, scheduler, progress
         As :func:`compute_descriptors`.
 
@@ -148,15 +151,17 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
     """
     from geoshape._options import check_choice
     from geoshape.retrieval.descriptors import (
+        FUSIONS,
         RERANKERS,
         RETRIEVAL_METHODS,
         descriptor_distance_matrix,
         descriptor_params,
+        method_descriptors,
         rerank,
     )
 
     check_choice("descriptor", method, RETRIEVAL_METHODS)
-    names = RERANKERS.get(method, (method,))
+    names = method_descriptors(method)
     for nm in names:
         descriptor_params(nm, affinity, seed)
     from geoshape.io.interop import is_mesh_object
@@ -176,6 +181,11 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
         D0 = descriptor_distance_matrix(first, descs[first])
         D = rerank(D0, descs[second], k=rerank_k, backend=backend, n_jobs=n_jobs,
                    scheduler=scheduler)
+    elif method in FUSIONS:
+        from geoshape.retrieval.fusion import fuse_distances
+
+        mats = {nm: descriptor_distance_matrix(nm, descs[nm]) for nm in names}
+        D = fuse_distances(mats, {nm: FUSIONS[method][nm] for nm in names})
     else:
         D = descriptor_distance_matrix(method, descs[method], backend=backend, n_jobs=n_jobs,
                                        scheduler=scheduler, progress=progress)

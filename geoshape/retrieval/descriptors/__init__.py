@@ -27,6 +27,9 @@ Spectral
 
 The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
 :data:`RETRIEVAL_METHODS`): rank by EVD, then re-rank each query's top ``K`` by CCD.
+The late fusion ``"fused"`` (:data:`FUSIONS`) computes ``evd_heat``, ``shapedna`` and ``lfd``,
+their all-pairs matrices, and fuses them query-adaptively with the cross-validated weights
+:data:`geoshape.retrieval.fusion.FUSED_WEIGHTS` (:func:`geoshape.retrieval.fusion.fuse_distances`).
 
 ``affinity`` (geodesic / Euclidean / combined) applies to the descriptors flagged
 ``uses_affinity``; the others take none and reject one.
@@ -47,12 +50,16 @@ from geoshape.errors import InvalidOptionError
 from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 from geoshape.parallel import single_thread_blas
+from geoshape.retrieval.fusion import FUSED_WEIGHTS
 
 __all__ = [
     "DescriptorSpec",
     "MESH_DESCRIPTORS",
     "METRICS",
     "RETRIEVAL_METHODS",
+    "RERANKERS",
+    "FUSIONS",
+    "method_descriptors",
     "DEFAULT_AFFINITY",
     "CCD_POINTS",
     "get_descriptor",
@@ -386,7 +393,19 @@ MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
 METRICS = ("chi2", "l1", "l2", "lfd", "ccd")
 #: Everything ``geoshape retrieval3d --descriptor`` accepts: descriptors + re-ranking schemes.
 RERANKERS = {"evd_ccd": ("evd", "ccd")}
-RETRIEVAL_METHODS = tuple(MESH_DESCRIPTORS) + tuple(RERANKERS)
+#: Late fusions: method -> {component descriptor: weight} (:mod:`geoshape.retrieval.fusion`).
+FUSIONS = {"fused": dict(FUSED_WEIGHTS)}
+RETRIEVAL_METHODS = tuple(MESH_DESCRIPTORS) + tuple(RERANKERS) + tuple(FUSIONS)
+
+
+def method_descriptors(method: str) -> tuple[str, ...]:
+    """The descriptors a retrieval method computes: itself, a re-ranker's two, a fusion's components."""
+    check_choice("descriptor", method, RETRIEVAL_METHODS)
+    if method in RERANKERS:
+        return RERANKERS[method]
+    if method in FUSIONS:
+        return tuple(n for n, w in FUSIONS[method].items() if w > 0)
+    return (method,)
 
 
 def get_descriptor(name: str) -> DescriptorSpec:
