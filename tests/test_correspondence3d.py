@@ -159,9 +159,9 @@ def test_patch_orientation_on_samples_tells_a_map_from_its_mirror():
 @pytest.mark.slow
 def test_large_mesh_mode_recovers_a_permuted_copy(monkeypatch):
     """Above LARGE_MESH vertices no stage maps every vertex until the last: same answer."""
-    import geoshape.correspondence.mesh_matching as mm
+    import geoshape.correspondence.pipeline as pipeline
 
-    monkeypatch.setattr(mm, "LARGE_MESH", 500)
+    monkeypatch.setattr(pipeline, "LARGE_MESH", 500)
     V, _, F = figure()
     perm = np.random.default_rng(8).permutation(len(V))
     inv = np.argsort(perm)

@@ -1,0 +1,599 @@
+"""The ``geoshape`` correspondence method as a sequence of stages, with its options.
+
+``correspond(..., method="geoshape", **options)`` checks ``options`` against
+:class:`GeoshapeOptions` before any work, then :func:`run_geoshape` runs
+
+1. :func:`candidate_alignments` — spectral embeddings and the signed eigenvector orders;
+2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
+3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut;
+4. :func:`refine` — the most promising screened candidates refined by ZoomOut, plus
+   :func:`descriptor_candidate` (wave kernel signatures) and :func:`complete_symmetry`;
+5. :func:`decide` — orientation first, then energy, then geodesic distortion on near ties;
+6. :func:`full_resolution` — the chosen map at every vertex of both meshes.
+
+Every candidate map is a :class:`Candidate` with its scores by name. See
+docs/correspondence3d.md ("Pipeline stages") for what each stage costs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import itertools
+import math
+import numbers
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geoshape._options import check_choice
+from geoshape.correspondence.icp import nonrigid_icp
+from geoshape.correspondence.orientation import orientation_score
+from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
+from geoshape.errors import InvalidOptionError
+from geoshape.geometry.knn import nearest
+
+if TYPE_CHECKING:
+    from geoshape.correspondence.mesh_matching import Correspondence, PreparedMesh
+    from geoshape.spectral.laplacian import LaplacianBasis
+
+#: above this many vertices (either mesh) screening and refinement work on samples only
+LARGE_MESH = 8000
+#: which orientation of mapped triangles the ``prefer`` option asks for
+PREFERENCES = ("preserving", "reversing")
+
+
+def _int(low: int, *, none: bool = False) -> dict:
+    return {"kind": "int", "low": low, "none": none}
+
+
+def _real(low: float, *, strict: bool = True) -> dict:
+    return {"kind": "real", "low": low, "strict": strict}
+
+
+_BOOL = {"kind": "bool"}
+
+
+@dataclass(frozen=True)
+class GeoshapeOptions:
+    """Every option of the ``geoshape`` method, with its default; checked when built.
+
+    Build it from keyword options with :meth:`from_options` (unknown names fail, listing the
+    valid ones) or directly; change one with :func:`dataclasses.replace` (checked again).
+    Counts of samples and eigenvectors are clipped to what a mesh has when used.
+    """
+
+    k: int = field(default=5, metadata=_int(1))
+    """Eigenvectors of the spectral embedding that are reordered and sign-corrected."""
+    reorder: str = "exhaustive"
+    """How the signed eigenvector orders are searched: one of ``REORDER_METHODS``."""
+    n_keep: int = field(default=8, metadata=_int(1))
+    """Cheapest signed orders kept as candidates (every sign vector of the best is added)."""
+    n_refine: int = field(default=5, metadata=_int(0))
+    """At most this many screened candidates are refined (0 acts as 1)."""
+    icp_iterations: int = field(default=6, metadata=_int(0))
+    """TPS non-rigid ICP iterations per candidate in the spectral domain."""
+    n_controls: int = field(default=200, metadata=_int(1))
+    """Farthest-point control points of the thin-plate spline."""
+    lb_k: int = field(default=60, metadata=_int(1))
+    """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
+    screen_k: int = field(default=16, metadata=_int(1))
+    """Basis size at the end of the coarse screening ZoomOut (at most ``lb_k``)."""
+    screen_samples: int = field(default=500, metadata=_int(1))
+    """Farthest-point samples per mesh on which candidates are screened."""
+    zoomout_start: int = field(default=6, metadata=_int(1))
+    """Basis size at the start of the screening ZoomOut."""
+    zoomout_step: int = field(default=2, metadata=_int(1))
+    """Basis size added per ZoomOut iteration."""
+    zoomout_samples: int = field(default=1500, metadata=_int(1))
+    """Farthest-point samples per mesh on which candidates are refined."""
+    n_samples: int | None = field(default=None, metadata=_int(1, none=True))
+    """Nyström samples of the spectral embedding (None: the embedding's default)."""
+    seed: int = field(default=0, metadata=_int(0))
+    """Seed of every sampling (results are deterministic for a given seed)."""
+    symmetry_completion: bool = field(default=True, metadata=_BOOL)
+    """Try a mirrored map composed with mesh 2's own left–right symmetry (see ``symmetry_ratio``)."""
+    symmetry_ratio: float = field(default=1.25, metadata=_real(0.0))
+    """Completion runs when the best wanted-orientation energy exceeds this × the best unwanted one."""
+    prefer: str = "preserving"
+    """Orientation of mapped triangles to choose: ``"preserving"`` or ``"reversing"`` (mirror)."""
+    descriptor_map: bool = field(default=True, metadata=_BOOL)
+    """Add the candidate from wave kernel signatures with an orientation term."""
+    descriptor_k: int = field(default=30, metadata=_int(1))
+    """Basis size of the descriptor functional map (skipped below 3 after clipping to ``lb_k``)."""
+    descriptor_ratio: float = field(default=1.15, metadata=_real(0.0))
+    """Descriptor and best spectral map within this energy ratio: geodesic distortion decides."""
+    distortion_samples: int = field(default=32, metadata=_int(1))
+    """Farthest samples of mesh 1 whose pairwise geodesics measure distortion."""
+
+    def __post_init__(self):
+        check_choice("geoshape option reorder", self.reorder, REORDER_METHODS)
+        check_choice("geoshape option prefer", self.prefer, PREFERENCES)
+        for f in dataclasses.fields(self):
+            rule, value = f.metadata, getattr(self, f.name)
+            if not rule:
+                continue
+            if rule["kind"] == "bool":
+                if not isinstance(value, (bool, np.bool_)):
+                    raise InvalidOptionError(f"geoshape option {f.name} must be True or False, got {value!r}")
+            elif rule["kind"] == "int":
+                if value is None and rule["none"]:
+                    continue
+                if (not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_))
+                        or value < rule["low"]):
+                    what = "None or an integer" if rule["none"] else "an integer"
+                    raise InvalidOptionError(
+                        f"geoshape option {f.name} must be {what} >= {rule['low']}, got {value!r}")
+            elif (not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_))
+                  or not math.isfinite(value) or value < rule["low"]
+                  or (rule["strict"] and value == rule["low"])):
+                bound = ">" if rule["strict"] else ">="
+                raise InvalidOptionError(
+                    f"geoshape option {f.name} must be a finite number {bound} {rule['low']}, got {value!r}")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The option names, in the order of the fields."""
+        return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def from_options(cls, options: Mapping) -> GeoshapeOptions:
+        """The options object of keyword ``options``; an unknown name (a misspelling, or an
+        option of another method) raises :class:`InvalidOptionError` listing the valid ones.
+
+        >>> GeoshapeOptions.from_options({"lb_k": 40}).lb_k
+        40
+        """
+        valid = cls.names()
+        unknown = [name for name in options if name not in valid]
+        if unknown:
+            hints = [f"{name!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(
+                name, valid, n=1)) else repr(name) for name in unknown]
+            raise InvalidOptionError(
+                f"method 'geoshape': unexpected keyword option {', '.join(hints)}; "
+                f"valid options: {', '.join(valid)}")
+        return cls(**options)
+
+
+@dataclass(eq=False)
+class Candidate:
+    """One candidate map of mesh 1 onto mesh 2, with its scores by name.
+
+    Screening fills ``coarse_map``, ``zoomout_energy`` and ``orientation``; refinement fills
+    ``refined_map``, ``refined_energy``, ``refined_orientation`` and ``unwanted``; the
+    decision may fill ``distortion``. Energies are ‖CᵀC − I‖_F / k of the functional map C
+    (0 for an isometry, lower is better); orientation scores are in [−1, 1] (+1: every
+    mapped triangle keeps its orientation, −1: a mirror image).
+    """
+
+    source: str = "spectral"
+    """``"spectral"`` (a signed eigenvector order) or ``"descriptors"`` (wave kernel signatures)."""
+    alignment: Alignment | None = None
+    """The signed column order of mesh 2's embedding (spectral candidates), else None."""
+    coarse_map: np.ndarray | None = None
+    """Screening map: every vertex of mesh 1 → samples of mesh 2 (large meshes: screening samples only)."""
+    zoomout_energy: float | None = None
+    """Functional-map energy after the coarse screening ZoomOut."""
+    orientation: float | None = None
+    """Orientation score of the coarse map."""
+    refined_map: np.ndarray | None = None
+    """Refined map: every vertex of mesh 1 → refinement samples of mesh 2 (large: samples only)."""
+    refined_energy: float | None = None
+    """Functional-map energy after the refining ZoomOut to ``lb_k``."""
+    refined_orientation: float | None = None
+    """Orientation score of the refined map."""
+    unwanted: bool | None = None
+    """The refined map has the orientation that ``prefer`` does not ask for."""
+    symmetry_completed: bool = False
+    """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
+    distortion: float | None = None
+    """Mean normalised geodesic distortion, when the decision had to measure it."""
+
+    @property
+    def cost(self) -> float | None:
+        """The thesis' L2 best-match cost of the signed order (spectral candidates)."""
+        return None if self.alignment is None else self.alignment.cost
+
+    @property
+    def refined(self) -> bool:
+        """Whether the refinement stage has run on this candidate."""
+        return self.refined_map is not None
+
+    def summary(self) -> dict:
+        """The candidate as one entry of ``Correspondence.alternatives`` (JSON output)."""
+        if self.source == "descriptors":
+            return {"source": "descriptors", "refined_energy": self.refined_energy,
+                    "refined_orientation": self.refined_orientation}
+        a = self.alignment
+        out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy,
+               "orientation": self.orientation}
+        if self.refined:
+            out.update(refined_energy=self.refined_energy, refined_orientation=self.refined_orientation)
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class PairContext:
+    """Per-pair precomputations shared by the stages (built by :func:`pair_context`)."""
+
+    m1: PreparedMesh
+    m2: PreparedMesh
+    A: np.ndarray
+    """(n1, k) spectral embedding of mesh 1."""
+    B: np.ndarray
+    """(n2, k) spectral embedding of mesh 2 (columns in its own order)."""
+    b1: LaplacianBasis
+    b2: LaplacianBasis
+    lb_k: int
+    """Eigenpairs used: ``lb_k`` clipped to n − 1 of both meshes."""
+    screen_k: int
+    """``screen_k`` clipped to ``lb_k``."""
+    s1: np.ndarray
+    """Refinement samples of mesh 1 (``zoomout_samples`` farthest points)."""
+    s2: np.ndarray
+    c1: np.ndarray
+    """Screening samples of mesh 1 (``screen_samples`` farthest points)."""
+    c2: np.ndarray
+    large: bool
+    """Large-mesh mode: maps live on samples until :func:`full_resolution`."""
+    normals: tuple | None
+    """Outward vertex normals of both meshes (large-mesh mode only)."""
+    screen_to_refine: np.ndarray | None
+    """Large-mesh mode: for each refinement sample, its nearest screening sample (index in ``c1``)."""
+    seed: int
+
+
+def spectral_alignments(m1: PreparedMesh, m2: PreparedMesh, *, k, scaling, reorder, n_keep, n_samples,
+                        seed, timings: dict, sigma="max"):
+    """Both meshes' spectral embeddings and the cheapest signed column orders of mesh 2's.
+
+    Returns ``(A (n1, k), B (n2, k), alignments)``, cheapest first (``n_keep`` of them).
+    Nyström embeddings O(l n log n); exhaustive reordering O(k! 2^k s^2) on s = 300 samples.
+    Shared by every spectral method (``jz``, ``shapiro-brady``, ``improved-sb``).
+    """
+    t = time.perf_counter()
+    e1 = m1.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
+    e2 = m2.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
+    timings["embedding"] = time.perf_counter() - t
+    t = time.perf_counter()
+    alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed)
+    timings["reorder"] = time.perf_counter() - t
+    return e1.coords, e2.coords, alignments
+
+
+def sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
+    """Every other sign vector of the best alignment's column order (2^k − 1 − already kept).
+
+    A bilateral symmetry shows up as one or more eigenvectors whose signs swap left and
+    right; the cheapest candidates by the L2 cost often all share those signs, so the
+    mirror map would never be tried. O(2^k s^2 k) on s = 200 samples.
+    """
+    from geoshape.correspondence.reorder import best_match_cost
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
+
+    best = alignments[0]
+    seen = {(a.perm, a.signs) for a in alignments}
+    A_s, B_s = A[euclidean_farthest_point_sampling(A, 200)], B[euclidean_farthest_point_sampling(B, 200)]
+    out = []
+    for signs in itertools.product((1, -1), repeat=len(best.signs)):
+        if (best.perm, signs) not in seen:
+            trial = Alignment(best.perm, signs, 0.0)
+            out.append(Alignment(best.perm, signs, best_match_cost(A_s, trial.apply(B_s))))
+    return out
+
+
+def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions, timings: dict):
+    """Stage 1: ``(A (n1, k), B (n2, k), alignments)`` — the ``n_keep`` cheapest signed
+    orders of √λ-scaled embeddings, then every other sign vector of the best order
+    (up to n_keep + 2^k − 1 alignments). Cost: :func:`spectral_alignments` +
+    :func:`sign_flip_variants`.
+    """
+    A, B, alignments = spectral_alignments(m1, m2, k=options.k, scaling="sqrt", reorder=options.reorder,
+                                           n_keep=options.n_keep, n_samples=options.n_samples,
+                                           seed=options.seed, timings=timings)
+    return A, B, alignments + sign_flip_variants(alignments, A, B)
+
+
+def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarray, options: GeoshapeOptions,
+                 timings: dict) -> PairContext:
+    """Stage 2: Laplace–Beltrami bases (``lb_k`` eigenpairs), refinement and screening samples
+    of both meshes, and in large-mesh mode the vertex normals. Two sparse eigenproblems
+    (cached per mesh), farthest-point sampling O(n s); O(n lb_k) memory per mesh.
+    """
+    t = time.perf_counter()
+    seed = options.seed
+    lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
+    screen_k = min(options.screen_k, lb_k)
+    b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
+    zs, ss = options.zoomout_samples, options.screen_samples
+    s1, s2 = m1.samples(zs, seed), m2.samples(zs, seed)
+    # a farthest-point prefix is the shorter run itself (not so when every vertex was taken)
+    c1 = s1[:ss] if ss <= zs < m1.n else m1.samples(ss, seed)
+    c2 = s2[:ss] if ss <= zs < m2.n else m2.samples(ss, seed)
+    timings["laplacian"] = time.perf_counter() - t
+    # Large meshes: no step below touches every vertex until the final map — maps live on
+    # the samples and orientation is judged on sample triples.
+    large = max(m1.n, m2.n) > LARGE_MESH
+    normals = screen_to_refine = None
+    if large:
+        from geoshape.correspondence.orientation import outward_vertex_normals
+
+        normals = (outward_vertex_normals(m1.V, m1.F), outward_vertex_normals(m2.V, m2.F))
+        screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1]
+    return PairContext(m1, m2, A, B, b1, b2, lb_k, screen_k, s1, s2, c1, c2, large, normals,
+                       screen_to_refine, seed)
+
+
+def orientation_of(ctx: PairContext, p2p: np.ndarray, rows: np.ndarray) -> float:
+    """Orientation score of a map in [−1, 1]: of every triangle (O(n1)), or in large-mesh
+    mode of sample triples around ``rows`` (``p2p`` aligned with ``rows``)."""
+    m1, m2 = ctx.m1, ctx.m2
+    if ctx.large:
+        from geoshape.correspondence.orientation import patch_orientation_score
+
+        return patch_orientation_score(m1.V, m1.F, m2.V, m2.F, p2p, rows1=rows, seed=ctx.seed,
+                                       normals=ctx.normals)
+    return orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+
+
+def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
+    """Stage 3: one :class:`Candidate` per alignment, in the same order, with its coarse map,
+    ``zoomout_energy`` and ``orientation``: TPS-ICP O(iter c^3) on ``n_controls`` controls,
+    then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples
+    O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed order
+    only 5th–15th).
+    """
+    from geoshape.correspondence.fmaps.zoomout import zoomout
+    from geoshape.geometry.sampling import euclidean_farthest_point_sampling
+
+    t = time.perf_counter()
+    A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
+    # the controls of B do not depend on the signed order (FPS distances are invariant);
+    # on large meshes they are matched against the refinement samples of A only
+    controls = euclidean_farthest_point_sampling(B, options.n_controls, options.seed)
+    A_targets = A[ctx.s1] if large else A
+    candidates = []
+    for a in alignments:
+        warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=options.icp_iterations, controls=controls,
+                               seed=options.seed, return_transform=True)
+        init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
+        # large meshes keep the map on the samples; otherwise every vertex of mesh 1 is
+        # mapped onto the samples of mesh 2
+        coarse, energy = zoomout(ctx.b1, ctx.b2, init, k_start=min(options.zoomout_start, ctx.screen_k),
+                                 k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
+                                 return_energy=True, samples_only=large, final_on_samples=not large)
+        candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy,
+                                    orientation=orientation_of(ctx, coarse, c1)))
+    timings["screening"] = time.perf_counter() - t
+    return candidates
+
+
+def refine_map(ctx: PairContext, init: np.ndarray, options: GeoshapeOptions, *,
+               on_refinement_rows: bool = False, k_start: int | None = None):
+    """ZoomOut ``k_start`` (default ``screen_k``) → ``lb_k`` on the refinement samples:
+    ``(map, energy, orientation)``. O(iter s^2 lb_k) for s = ``zoomout_samples``.
+
+    Large meshes: the samples' map, each refinement sample starting from its nearest
+    screening sample (unless ``init`` is already on the refinement samples). Otherwise every
+    vertex of mesh 1 onto the samples of mesh 2, enough to judge orientation.
+    """
+    from geoshape.correspondence.fmaps.zoomout import zoomout
+
+    start = init[ctx.screen_to_refine] if ctx.large and not on_refinement_rows else init
+    p2p, energy = zoomout(ctx.b1, ctx.b2, start, k_start=ctx.screen_k if k_start is None else k_start,
+                          k_end=ctx.lb_k, step=options.zoomout_step, samples1=ctx.s1, samples2=ctx.s2,
+                          return_energy=True, samples_only=ctx.large, final_on_samples=not ctx.large)
+    return p2p, energy, orientation_of(ctx, p2p, ctx.s1)
+
+
+def is_unwanted(orientation: float, prefer: str) -> bool:
+    """Whether an orientation score is of the orientation ``prefer`` does not ask for."""
+    return orientation <= 0 if prefer == "preserving" else orientation > 0
+
+
+def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: GeoshapeOptions,
+                 **kwargs) -> Candidate:
+    """Refine ``init`` and store map and scores in ``c``; returns ``c``."""
+    c.refined_map, c.refined_energy, c.refined_orientation = refine_map(ctx, init, options, **kwargs)
+    c.unwanted = is_unwanted(c.refined_orientation, options.prefer)
+    return c
+
+
+def first_to_refine(ranked: list[Candidate]) -> list[Candidate]:
+    """The most isometric candidate, then the most isometric ones of clearly positive and of
+    clearly negative coarse orientation (at least half the strongest score of that sign).
+    Coarse scores cluster near ±0.3 for the direct and the mirrored map and near 0 for mixed
+    ones: on coarse maps the orientation signal is weak, on refined maps it is decisive.
+    ``ranked`` is sorted by ``zoomout_energy``; O(len(ranked)).
+    """
+    queue = [ranked[0]]
+    for side in (1.0, -1.0):  # the most isometric clearly direct and clearly mirrored candidates
+        group = [c for c in ranked if np.sign(c.orientation) == side]
+        if group:
+            strongest = max(abs(c.orientation) for c in group)
+            first = next(c for c in group if abs(c.orientation) >= 0.5 * strongest)
+            if all(first is not q for q in queue):
+                queue.append(first)
+    return queue
+
+
+def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
+           timings: dict) -> list[Candidate]:
+    """Stage 4: refine :func:`first_to_refine` of ``ranked`` (sorted by ``zoomout_energy``);
+    while every refined map has the unwanted orientation, refine the candidate of most wanted
+    coarse orientation next — at most ``max(n_refine, 1)`` in all. Fills the refined scores
+    of those candidates and returns them in the order refined; O(n_refine · iter s^2 lb_k).
+    """
+    t = time.perf_counter()
+    queue = first_to_refine(ranked)
+    refined: list[Candidate] = []
+    while queue and len(refined) < max(options.n_refine, 1):
+        c = queue.pop(0)
+        refined.append(_refine_into(ctx, c, c.coarse_map, options))
+        if not queue and all(r.unwanted for r in refined):
+            rest = [x for x in ranked if not x.refined]
+            if rest:
+                sign = 1.0 if options.prefer == "preserving" else -1.0
+                queue.append(max(rest, key=lambda x: (sign * x.orientation, -x.zoomout_energy)))
+    timings["refinement"] = time.perf_counter() - t
+    return refined
+
+
+def descriptor_candidate(ctx: PairContext, options: GeoshapeOptions, timings: dict) -> Candidate | None:
+    """Stage 4b: a refined candidate independent of the eigenvector alignment, from the
+    functional map of wave kernel signatures with an orientation term (low eigenvectors of
+    a body do not tell front from back, and the front–back mirror composed with the
+    left–right one keeps orientation). None when ``descriptor_map`` is off or fewer than 3
+    eigenpairs are usable. A least-squares problem in kd^2 unknowns (kd = ``descriptor_k``),
+    then one refinement from kd.
+    """
+    kd = min(options.descriptor_k, ctx.lb_k)
+    if not (options.descriptor_map and kd >= 3):
+        return None
+    from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_functional_map
+    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
+
+    t = time.perf_counter()
+    m1, m2, lb_k = ctx.m1, ctx.m2, ctx.lb_k
+    C = descriptor_functional_map(m1.descriptor_operators(kd, lb_k), m2.descriptor_operators(kd, lb_k),
+                                  orientation=options.prefer)
+    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
+    c = _refine_into(ctx, Candidate("descriptors"), init, options, on_refinement_rows=True, k_start=kd)
+    timings["descriptor_map"] = time.perf_counter() - t
+    return c
+
+
+def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
+                      timings: dict) -> Candidate | None:
+    """Stage 4c: when a map of the unwanted orientation is clearly more isometric than every
+    map of the wanted one (energy ratio above ``symmetry_ratio``), the wanted map is that
+    map followed by the intrinsic left–right symmetry of mesh 2 (mesh 2 matched to itself
+    with ``prefer="reversing"``, orientation reversed). Returns the completed candidate, or
+    None. Cost when it fires: one more pipeline run on (mesh 2, mesh 2) and one refinement.
+
+    Mirror maps of a symmetric shape are as isometric as direct ones, so a ratio near 1
+    fires on noise: on tosca_r5k it added about 4 s to a third of the pairs and helped none.
+    """
+    wrong = [c for c in refined if c.unwanted]
+    right = [c for c in refined if not c.unwanted]
+    if not (options.symmetry_completion and options.prefer == "preserving" and wrong and (
+            not right or min(c.refined_energy for c in right)
+            > options.symmetry_ratio * min(c.refined_energy for c in wrong))):
+        return None
+    t = time.perf_counter()
+    mirror = run_geoshape(ctx.m2, ctx.m2, dataclasses.replace(options, prefer="reversing",
+                                                              symmetry_completion=False))
+    best_wrong = min(wrong, key=lambda c: c.refined_energy)
+    completed = None
+    if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
+        completed = dataclasses.replace(best_wrong, symmetry_completed=True)
+        _refine_into(ctx, completed, mirror.p2p_12[best_wrong.refined_map], options, on_refinement_rows=True)
+    timings["symmetry"] = time.perf_counter() - t
+    return completed
+
+
+def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images) -> list[float]:
+    """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
+    distances divided by their median, so uniform scale does not count). Each of ``images``
+    gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Mesh 1's rows
+    are computed once. O((1 + maps) s n log n) for s rows (graph Dijkstra).
+    """
+    rows1 = np.asarray(rows1, dtype=np.int64)
+
+    def normalised(mesh, rows):
+        D = mesh.solver("graph").distances(rows)[:, rows]
+        return D / max(float(np.median(D)), 1e-300)
+
+    D1 = normalised(m1, rows1)
+    return [float(np.mean(np.abs(D1 - normalised(m2, np.asarray(t, dtype=np.int64))))) for t in images]
+
+
+def decide(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions, timings: dict):
+    """Stage 5: the chosen candidate of ``refined`` — wanted orientation first, then the lowest
+    refined energy. When the descriptor candidate and the best spectral one (both wanted)
+    are within ``descriptor_ratio`` in energy, the energy cannot tell them apart (stretched
+    TOSCA meshes: the descriptor map won by 3–12 % with wrong maps; a generated biped: it
+    lost by 1 % with the right one), so the geodesic distortion of ``distortion_samples``
+    sample pairs decides: O(3 s n log n) Dijkstra for s samples.
+
+    Returns ``(chosen, distortion)``, ``distortion`` being ``{"descriptors": …, "spectral": …}``
+    when it was measured, else None.
+    """
+    chosen = min(refined, key=lambda c: (c.unwanted, c.refined_energy))
+    wanted = [c for c in refined if not c.unwanted]
+    by_descriptors = [c for c in wanted if c.source == "descriptors"]
+    spectral = [c for c in wanted if c.source != "descriptors"]
+    if not (by_descriptors and spectral):
+        return chosen, None
+    d, sp = by_descriptors[0], min(spectral, key=lambda c: c.refined_energy)
+    e_d, e_sp = d.refined_energy, sp.refined_energy
+    if not max(e_d, e_sp) <= options.descriptor_ratio * min(e_d, e_sp):
+        return chosen, None
+    t = time.perf_counter()
+    n = options.distortion_samples
+    rows = ctx.s1[:n] if ctx.large else ctx.c1[:n]
+    at = slice(0, len(rows)) if ctx.large else rows  # large: maps are aligned with s1
+    d.distortion, sp.distortion = geodesic_distortion(ctx.m1, ctx.m2, rows, d.refined_map[at],
+                                                      sp.refined_map[at])
+    timings["distortion"] = time.perf_counter() - t
+    chosen = d if d.distortion <= sp.distortion else sp
+    return chosen, {"descriptors": d.distortion, "spectral": sp.distortion}
+
+
+def full_resolution(ctx: PairContext, chosen: Candidate, timings: dict) -> np.ndarray:
+    """Stage 6: ``p2p_12 (n1,)`` — the chosen refined map's functional map (``lb_k`` × ``lb_k``)
+    read off at every vertex of both meshes: O(n1 n2 lb_k), or O(n1 c lb_k) with c = 64
+    spatial candidates above ``BRUTE_FORCE_MAX`` target vertices. In large-mesh mode each
+    vertex starts from its nearest sample's image.
+    """
+    from geoshape.correspondence.fmaps.zoomout import full_resolution_map, functional_map_from_p2p
+
+    t = time.perf_counter()
+    b1, b2, lb_k, coarse = ctx.b1, ctx.b2, ctx.lb_k, chosen.refined_map
+    if ctx.large:
+        C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k, rows1=ctx.s1)
+        coarse = coarse[nearest(ctx.m1.V[ctx.s1], ctx.m1.V)[1]]  # each vertex: its nearest sample's image
+    else:
+        C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
+    p2p = full_resolution_map(b1, b2, C, coarse, ctx.m2.V)
+    timings["full_resolution"] = time.perf_counter() - t
+    return p2p
+
+
+def alternatives(ranked: list[Candidate], refined: list[Candidate]) -> list[dict]:
+    """``Correspondence.alternatives``: every screened candidate by ``zoomout_energy``, then
+    every refined descriptor candidate (see :meth:`Candidate.summary`)."""
+    return [c.summary() for c in ranked] + [c.summary() for c in refined if c.source == "descriptors"]
+
+
+def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> Correspondence:
+    """The ``geoshape`` method: every stage in turn (module docstring); a
+    :class:`~geoshape.correspondence.mesh_matching.Correspondence` whose ``cost`` is the chosen
+    map's refined energy and whose ``details`` hold ``large_mesh_mode``, ``symmetry_completed``,
+    ``distortion`` (when measured), ``source`` and the final map's ``orientation``.
+    """
+    from geoshape.correspondence.mesh_matching import Correspondence
+
+    timings: dict = {}
+    A, B, alignments = candidate_alignments(m1, m2, options, timings)
+    ctx = pair_context(m1, m2, A, B, options, timings)
+    ranked = sorted(screen(ctx, alignments, options, timings), key=lambda c: c.zoomout_energy)
+    refined = refine(ctx, ranked, options, timings)
+    descriptors = descriptor_candidate(ctx, options, timings)
+    if descriptors is not None:
+        refined.append(descriptors)
+    completed = complete_symmetry(ctx, refined, options, timings)
+    if completed is not None:
+        refined.append(completed)
+    chosen, distortion = decide(ctx, refined, options, timings)
+    details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed)}
+    if distortion is not None:
+        details["distortion"] = distortion
+    details["source"] = chosen.source
+    p2p = full_resolution(ctx, chosen, timings)
+    details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
+    return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,
+                          alternatives(ranked, refined), timings, details)

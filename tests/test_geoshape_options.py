@@ -1,0 +1,143 @@
+"""The options of the ``geoshape`` correspondence method (``GeoshapeOptions``): checked before
+any work, frozen, every field documented; and the stage records of the pipeline."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import inspect
+
+import numpy as np
+import pytest
+
+import geoshape.correspondence.mesh_matching as mm
+import geoshape.correspondence.pipeline as pipeline
+from geoshape.correspondence.pipeline import Candidate, GeoshapeOptions
+from geoshape.correspondence.reorder import Alignment
+from geoshape.errors import InvalidOptionError
+
+
+def _octahedron():
+    V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return V, F
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Every step after the option check raises: preparing a mesh and running a stage."""
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("work started before the options were checked")
+
+    monkeypatch.setattr(mm, "_prepared", forbidden)
+    monkeypatch.setattr(mm, "run_geoshape", forbidden)
+    monkeypatch.setattr(pipeline, "candidate_alignments", forbidden)
+
+
+def test_unknown_option_fails_before_any_work_naming_the_valid_ones(no_work):
+    V, F = _octahedron()
+    with pytest.raises(InvalidOptionError) as info:
+        mm.correspond(V, F, V, F, method="geoshape", lb_kk=40)
+    message = str(info.value)
+    assert "unexpected keyword" in message and "'lb_kk'" in message
+    assert "did you mean 'lb_k'" in message
+    assert "valid options: " + ", ".join(GeoshapeOptions.names()) in message
+    with pytest.raises(InvalidOptionError, match="'frobnicate'.*valid options: k, reorder"):
+        mm.correspond(V, F, V, F, frobnicate=3)  # geoshape is the default method
+    with pytest.raises(InvalidOptionError, match="'anchors'"):  # an option of jz, not of geoshape
+        mm.correspond(V, F, V, F, anchors=3)
+
+
+def test_unknown_option_leaves_prepared_meshes_untouched(monkeypatch):
+    V, F = _octahedron()
+    V = np.vstack([V, 0.5 * V])  # enough vertices for a PreparedMesh
+    F = np.vstack([F, F + 6])
+    m1, m2 = mm.PreparedMesh(V, F), mm.PreparedMesh(V, F)
+    with pytest.raises(InvalidOptionError, match="valid options"):
+        mm.correspond(m1, m2, zoomout_sample=100)
+    assert not m1._cache and not m2._cache
+
+
+def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
+    V, F = _octahedron()
+    expected = "prefer must be one of 'preserving', 'reversing'; got 'preserve'"
+    with pytest.raises(InvalidOptionError, match=expected):
+        mm.correspond(V, F, V, F, prefer="preserve")
+    with pytest.raises(InvalidOptionError, match="'preserving', 'reversing'"):
+        GeoshapeOptions(prefer="Reversing")
+
+
+@pytest.mark.parametrize("name, value", [
+    ("lb_k", 0), ("lb_k", 2.5), ("k", True), ("n_refine", -1), ("seed", -1), ("n_samples", 0),
+    ("symmetry_completion", "yes"), ("descriptor_map", 1), ("symmetry_ratio", 0.0),
+    ("descriptor_ratio", float("nan")), ("descriptor_ratio", "1.15"), ("reorder", "random"),
+])
+def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
+    V, F = _octahedron()
+    with pytest.raises(InvalidOptionError, match=name):
+        mm.correspond(V, F, V, F, **{name: value})
+
+
+def test_options_are_frozen_and_checked_again_when_replaced():
+    options = GeoshapeOptions()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        options.lb_k = 30
+    with pytest.raises(InvalidOptionError, match="prefer"):
+        dataclasses.replace(options, prefer="mirror")
+    changed = dataclasses.replace(options, prefer="reversing", symmetry_completion=False)
+    assert (changed.prefer, changed.symmetry_completion, options.prefer) == ("reversing", False, "preserving")
+
+
+def test_defaults_and_accepted_values():
+    options = GeoshapeOptions.from_options({})
+    assert options == GeoshapeOptions()
+    assert len(GeoshapeOptions.names()) == 21
+    assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
+        5, 60, 8, "preserving", None)
+    numpy_values = GeoshapeOptions(lb_k=np.int64(40), symmetry_ratio=np.float32(1.5),
+                                   descriptor_map=np.bool_(False))
+    assert numpy_values.lb_k == 40 and not numpy_values.descriptor_map
+    assert GeoshapeOptions(n_refine=0, icp_iterations=0, n_samples=300, symmetry_ratio=2).n_refine == 0
+
+
+def test_every_option_has_a_one_line_docstring():
+    """Each field of GeoshapeOptions is followed by a one-line string saying what it is."""
+    tree = ast.parse(inspect.getsource(GeoshapeOptions))
+    body = tree.body[0].body
+    documented = {}
+    for node, after in zip(body, body[1:], strict=False):
+        if (isinstance(node, ast.AnnAssign) and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant)):
+            documented[node.target.id] = after.value.value
+    assert set(documented) == set(GeoshapeOptions.names())
+    assert all(doc and "\n" not in doc.strip() for doc in documented.values())
+
+
+def test_candidate_summary_keeps_the_alternatives_fields():
+    """The JSON of ``geoshape correspond --json`` lists these fields, in this order."""
+    spectral = Candidate(alignment=Alignment((1, 0), (1, -1), 2.5), coarse_map=np.zeros(3, dtype=np.int64),
+                         zoomout_energy=0.1, orientation=0.3)
+    assert list(spectral.summary()) == ["perm", "signs", "cost", "zoomout_energy", "orientation"]
+    assert spectral.cost == 2.5 and not spectral.refined
+    spectral.refined_map, spectral.refined_energy, spectral.refined_orientation = np.zeros(3), 0.05, 0.8
+    assert list(spectral.summary())[-2:] == ["refined_energy", "refined_orientation"]
+    descriptors = Candidate(source="descriptors", refined_map=np.zeros(3), refined_energy=0.04,
+                            refined_orientation=0.7)
+    assert descriptors.summary() == {"source": "descriptors", "refined_energy": 0.04,
+                                     "refined_orientation": 0.7}
+    assert descriptors.cost is None
+
+
+def test_decision_prefers_the_wanted_orientation_then_energy():
+    def refined(energy, unwanted, source="spectral"):
+        return Candidate(source=source, refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
+                         refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted)
+
+    mirrored, direct, other = refined(0.01, True), refined(0.03, False), refined(0.05, False)
+    chosen, distortion = pipeline.decide(None, [mirrored, other, direct], GeoshapeOptions(), {})
+    assert chosen is direct and distortion is None
+    # a descriptor candidate far from the best spectral one in energy: no distortion measured
+    chosen, distortion = pipeline.decide(None, [direct, refined(0.2, False, "descriptors")],
+                                         GeoshapeOptions(), {})
+    assert chosen is direct and distortion is None
