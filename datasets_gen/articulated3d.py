@@ -454,22 +454,9 @@ def build_template(
     ms.meshing_remove_unreferenced_vertices()
     nv = ms.current_mesh().vertex_number()
     if nv > target_vertices:
-        nf = ms.current_mesh().face_number()
-        ms.meshing_decimation_quadric_edge_collapse(
-            targetfacenum=int(max(4, nf - 2 * (nv - target_vertices))),
-            targetperc=0.0,
-            qualitythr=0.5,
-            preserveboundary=False,
-            boundaryweight=1.0,
-            preservenormal=True,
-            preservetopology=True,
-            optimalplacement=True,
-            planarquadric=True,
-            planarweight=0.001,
-            qualityweight=False,
-            autoclean=True,
-            selected=False,
-        )
+        from geoshape_datasets_gen.decimate import quadric_collapse_pass
+
+        quadric_collapse_pass(ms, target_vertices, preserve_boundary=False)
     mesh = ms.current_mesh()
     V = np.ascontiguousarray(mesh.vertex_matrix(), dtype=np.float64)
     F = np.ascontiguousarray(mesh.face_matrix(), dtype=np.int64)

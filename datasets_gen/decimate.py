@@ -302,3 +302,21 @@ def decimation_ladder(
         raise InvalidOptionError("give at least one decimation ratio")
     V, F = check_mesh(V, F, name="mesh to decimate")
     return [decimate_exact(V, F, r, **kwargs) for r in ratios]
+
+
+def quadric_collapse_pass(ms, n_vertices: int, *, preserve_boundary: bool) -> None:
+    """One PyMeshLab quadric edge-collapse pass of ``ms``'s current mesh towards ``n_vertices``.
+
+    Optimal placement, topology and normals preserved, planar quadrics on: the settings of
+    the generators that only need a mesh of about ``n_vertices`` (no vertex ids kept, unlike
+    :func:`decimate_exact`). On a closed mesh ``F ≈ 2V``, so the face target is the face count
+    less twice the vertices to remove. O(m log m) for ``m`` faces.
+    """
+    m = ms.current_mesh()
+    nv, nf = m.vertex_number(), m.face_number()
+    ms.meshing_decimation_quadric_edge_collapse(
+        targetfacenum=int(max(4, nf - 2 * (nv - n_vertices))), targetperc=0.0, qualitythr=0.5,
+        preserveboundary=preserve_boundary, boundaryweight=1.0, preservenormal=True,
+        preservetopology=True, optimalplacement=True, planarquadric=True, planarweight=0.001,
+        qualityweight=False, autoclean=True, selected=False,
+    )

@@ -226,26 +226,13 @@ def _decimate_to(V: np.ndarray, F: np.ndarray, n: int, passes: int = 4):
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=V, face_matrix=F))
+    from geoshape_datasets_gen.decimate import quadric_collapse_pass
+
     for _ in range(passes):
-        m = ms.current_mesh()
-        nv, nf = m.vertex_number(), m.face_number()
+        nv = ms.current_mesh().vertex_number()
         if nv <= n:
             break
-        ms.meshing_decimation_quadric_edge_collapse(
-            targetfacenum=int(max(4, nf - 2 * (nv - n))),
-            targetperc=0.0,
-            qualitythr=0.5,
-            preserveboundary=True,
-            boundaryweight=1.0,
-            preservenormal=True,
-            preservetopology=True,
-            optimalplacement=True,
-            planarquadric=True,
-            planarweight=0.001,
-            qualityweight=False,
-            autoclean=True,
-            selected=False,
-        )
+        quadric_collapse_pass(ms, n, preserve_boundary=True)
         if ms.current_mesh().vertex_number() >= nv:
             break
     ms.meshing_remove_unreferenced_vertices()
@@ -484,22 +471,6 @@ def compose_ground_truth(pair, to_source_original: np.ndarray, target_from_origi
     return ComposedTruth(keep.astype(np.int64), from_tgt[lt[k]], sym, lt[k])
 
 
-def _feature_points(folder: Path):
-    """(ids, mirrored ids) of SCAPE's feature points (``Corrs/1.pid``, 0-based, with the
-    left/right pairs of ``Corrs/1.sym.info``), or None — as the correspondence bench reads them."""
-    pid, sym = folder / "Corrs" / "1.pid", folder / "Corrs" / "1.sym.info"
-    if not (pid.is_file() and sym.is_file()):
-        return None
-    ids = np.loadtxt(pid, ndmin=2)[:, 0].astype(np.int64)
-    mirror = np.arange(len(ids))
-    for line in sym.read_text().splitlines():
-        parts = line.split()
-        if len(parts) == 2:
-            a, b = int(parts[0]), int(parts[1])
-            mirror[a], mirror[b] = b, a
-    return ids, ids[mirror]
-
-
 def _vts(ids: np.ndarray) -> str:
     return "".join(f"{i}\n" for i in (np.asarray(ids, dtype=np.int64) + 1).tolist())
 
@@ -571,7 +542,7 @@ def write_remeshed_set(
         ``{"meshes": [...], "pairs": [(source, target, n_landmarks), ...], "folder": ...}``.
     """
     from geoshape.io.atomic import write_text_atomic
-    from geoshape.io.datasets import mesh_stem, read_pairs
+    from geoshape.io.datasets import mesh_stem, read_pairs, scape_feature_points
     from geoshape.io.mesh_io import load_mesh, save_mesh
 
     n_vertices = _check_vertices(n_vertices)
@@ -604,7 +575,7 @@ def write_remeshed_set(
                             "original_vertices": len(V)})
         if progress is not None:
             progress(done, len(originals), stem)
-    features = _feature_points(folder) if all(p.identity for p in pairs) else None
+    features = scape_feature_points(folder) if all(p.identity for p in pairs) else None
     rows, feat_rows, pairs_json, result_pairs = [], [], [], []
     for pair in pairs:
         a, b = info[pair.source], info[pair.target]

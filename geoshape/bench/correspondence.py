@@ -56,21 +56,6 @@ def run_pyfm(V1, F1, V2, F2) -> np.ndarray:
     return np.asarray(model.get_p2p(fm, n_jobs=1), dtype=np.int64)
 
 
-def scape_feature_points(folder: Path):
-    """(ids, mirrored ids) of SCAPE's SCB feature points, or None if absent."""
-    pid, sym = folder / "Corrs" / "1.pid", folder / "Corrs" / "1.sym.info"
-    if not (pid.is_file() and sym.is_file()):
-        return None
-    ids = np.loadtxt(pid, ndmin=2)[:, 0].astype(np.int64)
-    mirror = np.arange(len(ids))
-    for line in sym.read_text().splitlines():
-        parts = line.split()
-        if len(parts) == 2:
-            a, b = int(parts[0]), int(parts[1])
-            mirror[a], mirror[b] = b, a
-    return ids, ids[mirror]
-
-
 def _landmark_sets(pair, n_vertices_1, n_vertices_2, n_landmarks, seed, feature_points):
     """(source ids, target ids, target mirrored ids or None) to evaluate."""
     rng = np.random.default_rng(seed)
@@ -101,7 +86,7 @@ def _run(args: argparse.Namespace) -> int:
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, correspond
     from geoshape.errors import GeoshapeError
-    from geoshape.io.datasets import read_pairs
+    from geoshape.io.datasets import read_pairs, scape_feature_points
     from geoshape.io.mesh_io import load_mesh
     from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
     from geoshape.plot.correspondence import plot_error_curves

@@ -138,6 +138,26 @@ def read_vts(path: str | os.PathLike) -> np.ndarray:
     return ids.astype(np.int64) - 1
 
 
+def scape_feature_points(folder: str | os.PathLike):
+    """(ids, mirrored ids) of SCAPE's feature points, or None if absent.
+
+    ``Corrs/1.pid`` holds the 0-based vertex ids, ``Corrs/1.sym.info`` the left/right pairs
+    (index pairs into that list); the mirrored ids swap each pair.
+    """
+    folder = Path(folder)
+    pid, sym = folder / "Corrs" / "1.pid", folder / "Corrs" / "1.sym.info"
+    if not (pid.is_file() and sym.is_file()):
+        return None
+    ids = np.loadtxt(pid, ndmin=2)[:, 0].astype(np.int64)
+    mirror = np.arange(len(ids))
+    for line in sym.read_text().splitlines():
+        parts = line.split()
+        if len(parts) == 2:
+            a, b = int(parts[0]), int(parts[1])
+            mirror[a], mirror[b] = b, a
+    return ids, ids[mirror]
+
+
 def _optional_vts(folder: Path, row: dict, column: str) -> np.ndarray | None:
     value = (row.get(column) or "").strip()
     return read_vts(folder / value) if value else None
