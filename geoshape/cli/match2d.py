@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from geoshape.cli._common import CONTOUR_POINTS
+from geoshape.cli._common import CONTOUR_POINTS, RangeType
 from geoshape.io.outputs import declare_outputs
 
 METHOD_HELP = "matching method: default, gsc, shape_context, idsc, curvature_map"
+#: --lines: matches joined by a line in the --plot picture (up to the largest --n-points).
+MATCH_LINES = RangeType(int, 0, 4000)
 
 
 def register(subparsers) -> None:
@@ -22,7 +24,11 @@ def register(subparsers) -> None:
                    help="override the method's matcher: best, proximity, hungarian, dp")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
-    p.add_argument("--plot", help="picture of both contours with lines between matches")
+    p.add_argument("--plot", help="picture of both contours side by side, upright, matched points "
+                   "coloured alike (unmatched grey)")
+    p.add_argument("--lines", type=MATCH_LINES, default=None, metavar="N",
+                   help="in the --plot picture, join N evenly spaced matches by a thin line "
+                   "(default 12; 0: none)")
     p.add_argument("--html", metavar="VIEW.html",
                    help="offline interactive viewer (one file): both contours, matched points "
                    "coloured alike, click a point to mark its match")
@@ -52,10 +58,11 @@ def run(args) -> int:
     if args.plot:
         from pathlib import Path
 
-        from geoshape.plot.contours import plot_contour_matching
+        from geoshape.plot.contours import DEFAULT_MATCH_LINES, plot_contour_matching
 
         title = f"{Path(args.image_a).name} ↔ {Path(args.image_b).name}  ({args.method}, cost {cost:.4g})"
-        plot_contour_matching(P, Q, p2p, args.plot, title=title)
+        lines = DEFAULT_MATCH_LINES if args.lines is None else args.lines
+        plot_contour_matching(P, Q, p2p, args.plot, title=title, lines=lines)
     if args.html:
         from pathlib import Path
 
