@@ -13,12 +13,16 @@ as in Kim et al.'s benchmark; other identity sets report direct errors only.
 The off-the-shelf peer is pyFM (``pip install pyfmaps``, never a dependency of geoshape),
 run with its README's recommended settings: WKS descriptors, K = 30, orientation term
 on, ZoomOut refinement nit = 16, step = 5.
+
+``--suite generalization`` runs every dev set of issue #14 into one table instead
+(:mod:`geoshape.bench.correspondence_suite`), through the same :func:`evaluate_pairs`.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,10 +33,12 @@ THRESHOLDS = (0.025, 0.05, 0.1, 0.25)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("dir", metavar="DIR", help="dataset folder holding pairs.csv and the meshes")
+    p.add_argument("dir", metavar="DIR", nargs="?", default=None,
+                   help="dataset folder holding pairs.csv and the meshes (not with --suite)")
     p.add_argument("--pairs", default="pairs.csv", help="pairs file (relative to DIR), default pairs.csv")
     p.add_argument("--limit", type=int, default=None, help="only the first N pairs")
-    p.add_argument("--methods", default=DEFAULT_METHODS, help=f"comma-separated (default {DEFAULT_METHODS})")
+    p.add_argument("--methods", default=None,
+                   help=f"comma-separated (default {DEFAULT_METHODS}; with --suite: geoshape)")
     p.add_argument("--peer", choices=("pyfm", "none"), default="pyfm", help="off-the-shelf peer to run too")
     p.add_argument("--landmarks", type=int, default=1000, help="landmarks evaluated per pair (seeded subset)")
     p.add_argument("--section", default=None, help="RESULTS.md section name (default from DIR and pairs)")
@@ -40,6 +46,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="cumulative-error plot (default docs/img/correspondence_<set>.png)")
     p.add_argument("--no-results", action="store_true", help="print only; do not write docs/RESULTS.md")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--suite", choices=("generalization",), default=None,
+                   help="run every dev set of issue #14 (original, remeshed, non-isometric) into one table")
+    p.add_argument("--dev-dir", default=None,
+                   help="with --suite: folder of the generated dev sets, reused when their generator "
+                   "parameters match (default $XDG_CACHE_HOME/geoshape/dev-sets or ~/.cache/…)")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="with --suite: also each numeric default of the geoshape method ×0.5 and ×2 (long)")
 
 
 def run_pyfm(V1, F1, V2, F2) -> np.ndarray:
@@ -80,64 +93,127 @@ def run(args: argparse.Namespace) -> int:
         return _run(args)
 
 
-def _run(args: argparse.Namespace) -> int:
-    from geoshape._options import check_choice
-    from geoshape.bench.experiments._common import machine_note
-    from geoshape.bench.results import markdown_table, update_results_section
-    from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, correspond
-    from geoshape.errors import GeoshapeError
-    from geoshape.io.datasets import read_pairs, scape_feature_points
-    from geoshape.io.mesh_io import load_mesh
-    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
-    from geoshape.plot.correspondence import plot_error_curves
+@dataclass
+class PairResult:
+    """One method on one pair: per-landmark errors ÷ √area (direct, symmetry-aware) and time."""
 
-    folder = Path(args.dir)
-    methods = [m for m in args.methods.split(",") if m]
+    method: str
+    pair: str
+    errors: np.ndarray | None = None
+    errors_sym: np.ndarray | None = None
+    """Symmetry-aware errors; the direct ones when the pair has no symmetric ground truth."""
+    seconds: float = float("nan")
+    error: str | None = None
+    """Message when the method raised (no errors then)."""
+
+    @property
+    def mean(self) -> float:
+        return float(self.errors.mean()) if self.errors is not None else float("nan")
+
+    @property
+    def mean_sym(self) -> float:
+        return float(self.errors_sym.mean()) if self.errors_sym is not None else float("nan")
+
+
+def peer_methods(methods: list[str], peer: str) -> list[str]:
+    """``methods`` (checked) plus ``"pyfm"`` when the peer is asked for and installed."""
+    from geoshape._options import check_choice
+    from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS
+
+    methods = list(methods)
     for m in methods:
         check_choice("correspondence method", m, CORRESPONDENCE_METHODS)
-    if args.peer == "pyfm":
+    if peer == "pyfm":
         try:
             import pyFM  # noqa: F401
         except ImportError:
             print("pyFM is not installed (pip install pyfmaps); running without the peer")
         else:
             methods.append("pyfm")
-    pairs = read_pairs(folder, args.pairs)[: args.limit]
+    return methods
+
+
+def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | None = None,
+                   landmarks: int = 1000, seed: int = 0, options: dict | None = None, spread: bool = False,
+                   log=print) -> tuple[list[PairResult], bool]:
+    """Run every method on the first ``limit`` pairs of ``folder/pairs_file`` and score it.
+
+    With ``spread`` the ``limit`` pairs are evenly spaced rows instead (every class of a
+    file sorted by class kept).
+    Returns the results (pair by pair, methods in turn) and whether the set has a
+    symmetric ground truth. ``options`` go to the ``geoshape`` method only.
+    """
+    from geoshape.correspondence.mesh_matching import correspond
+    from geoshape.errors import GeoshapeError
+    from geoshape.io.datasets import read_pairs, scape_feature_points
+    from geoshape.io.mesh_io import load_mesh
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
+
+    folder = Path(folder)
+    pairs = read_pairs(folder, pairs_file)
+    if spread and limit is not None and limit < len(pairs):
+        rows = np.unique(np.linspace(0, len(pairs) - 1, max(limit, 1)).round().astype(int))
+        pairs = [pairs[i] for i in rows]
+    pairs = pairs[:limit]
     feature_points = scape_feature_points(folder)
-    errs = {m: [] for m in methods}
-    errs_sym = {m: [] for m in methods}
-    times = {m: [] for m in methods}
-    failures = {m: 0 for m in methods}
+    results: list[PairResult] = []
     evaluators: dict = {}
     for pi, pair in enumerate(pairs):
         V1, F1 = load_mesh(pair.source)
         V2, F2 = load_mesh(pair.target)
-        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), args.landmarks, args.seed + pi,
-                                       feature_points)
+        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), landmarks, seed + pi, feature_points)
         ev = evaluators.setdefault(str(pair.target), GeodesicErrorEvaluator(V2, F2))
         if len(evaluators) > 4:
             evaluators.pop(next(iter(evaluators)))
-        line = [f"[{pi + 1}/{len(pairs)}] {pair.source.name} -> {pair.target.name}:"]
+        name = f"{pair.source.name} -> {pair.target.name}"
+        line = [f"[{pi + 1}/{len(pairs)}] {name}:"]
         for m in methods:
             t = time.perf_counter()
             try:
                 if m == "pyfm":
                     p2p = run_pyfm(V1, F1, V2, F2)
                 else:
-                    p2p = correspond(V1, F1, V2, F2, method=m, seed=args.seed).p2p_12
+                    extra = options if (options and m == "geoshape") else {}
+                    p2p = correspond(V1, F1, V2, F2, method=m, seed=seed, **extra).p2p_12
             except GeoshapeError as exc:
-                failures[m] += 1
+                results.append(PairResult(m, name, error=str(exc)))
                 line.append(f"{m} FAILED ({exc})")
                 continue
-            times[m].append(time.perf_counter() - t)
+            seconds = time.perf_counter() - t
             r = geodesic_errors(V2, F2, p2p[src], tgt, sym, evaluator=ev)
-            errs[m].append(r["errors"])
-            errs_sym[m].append(r["errors_sym_aware"] if sym is not None else r["errors"])
+            results.append(PairResult(m, name, r["errors"],
+                                      r["errors_sym_aware"] if sym is not None else r["errors"], seconds))
             sym_mean = r.get("mean_sym_aware", float("nan"))
-            line.append(f"{m} {r['mean']:.3f}/{sym_mean:.3f} {times[m][-1]:.1f}s")
-        print(" ".join(line), flush=True)
-
+            line.append(f"{m} {r['mean']:.3f}/{sym_mean:.3f} {seconds:.1f}s")
+        log(" ".join(line))
     has_sym = any(p.target_symmetric_landmarks is not None for p in pairs) or feature_points is not None
+    return results, has_sym
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.suite:
+        from geoshape.bench.correspondence_suite import run_suite
+
+        return run_suite(args)
+    if args.dir is None:
+        raise SystemExit("geoshape bench correspondence: DIR is required (or --suite generalization)")
+    from geoshape.bench.experiments._common import machine_note
+    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.io.datasets import scape_feature_points
+    from geoshape.plot.correspondence import plot_error_curves
+
+    folder = Path(args.dir)
+    args.methods = args.methods or DEFAULT_METHODS
+    methods = peer_methods([m for m in args.methods.split(",") if m], args.peer)
+    results, has_sym = evaluate_pairs(folder, args.pairs, methods, limit=args.limit,
+                                      landmarks=args.landmarks, seed=args.seed,
+                                      log=lambda text: print(text, flush=True))
+    feature_points = scape_feature_points(folder)
+    ok = [r for r in results if r.error is None]
+    errs = {m: [r.errors for r in ok if r.method == m] for m in methods}
+    errs_sym = {m: [r.errors_sym for r in ok if r.method == m] for m in methods}
+    times = {m: [r.seconds for r in ok if r.method == m] for m in methods}
+    failures = {m: sum(r.error is not None and r.method == m for r in results) for m in methods}
     header = ["method", "mean error", "mean error (sym-aware)"]
     header += [f"≤ {t} (%)" for t in THRESHOLDS] + ["median s/pair", "pairs", "failed"]
     rows = []

@@ -1,0 +1,238 @@
+"""``geoshape bench correspondence --suite generalization``: every dev set of issue #14, one table.
+
+The sets: the shared ``tosca_r5k`` (``pairs_subset.csv``), ``scape`` and ``tosca_hires``; and,
+generated reproducibly into ``--dev-dir`` (reused when their ``generator.json`` records the same
+parameters), remeshed SCAPE and remeshed TOSCA r5k (``gen remesh-set``, 30 pairs, 5000 vertices,
+seed 0; remeshed SCAPE scored on its snapped feature points, ``pairs_features.csv``, like SCAPE)
+and the non-isometric family (``gen nonisometric``, 30 pairs, seed 0). Every pair is run and
+scored by :func:`geoshape.bench.correspondence.evaluate_pairs` (the bench's one per-pair
+evaluation); this module adds only the orchestration, the per-set metrics and the tables.
+
+Per set and method: pairs; mean direct and symmetry-aware error (÷ √area, mean over pairs of
+the per-pair mean); median pair error (direct); share of landmarks within 0.025 and 0.05
+(direct); failures — pairs whose mean direct error exceeds 0.1, plus pairs on which the method
+raised; flips — failures whose symmetry-aware error is under half the direct one (a
+left/right swap, not a lost map); median seconds per pair. ``--sensitivity`` reruns the
+``geoshape`` method with each numeric default of
+:class:`~geoshape.correspondence.pipeline.GeoshapeOptions` (``SENSITIVITY_FIELDS``) ×0.5 and ×2
+and reports the mean direct error per set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+SECTION = "correspondence-generalization"
+FAILURE_ERROR = 0.1
+"""A pair whose mean direct error (÷ √area) exceeds this is a failure."""
+FLIP_RATIO = 0.5
+"""A failure whose symmetry-aware error is under this × its direct error is a flip."""
+SUITE_THRESHOLDS = (0.025, 0.05)
+DEV_PAIRS, DEV_SEED, DEV_VERTICES = 30, 0, 5000
+SENSITIVITY_FIELDS = (
+    "n_keep", "n_refine", "icp_iterations", "n_controls", "lb_k", "screen_k", "screen_samples",
+    "zoomout_samples", "symmetry_ratio", "descriptor_k", "descriptor_ratio", "distortion_samples",
+)
+"""Numeric defaults varied by ``--sensitivity``. Left out: ``k`` (the exhaustive order search
+grows as k!·2^k, ×2 is intractable), ``zoomout_start`` / ``zoomout_step`` (the schedule between
+fixed end sizes), ``n_samples`` (None: the embedding's own default) and ``seed``."""
+SENSITIVITY_FACTORS = (0.5, 2.0)
+
+
+@dataclass(frozen=True)
+class DevSet:
+    """One set of the suite: a shared dataset folder, or a generated one."""
+
+    name: str
+    pairs_file: str
+    dataset: str | None = None
+    """Folder name under the data root (shared sets)."""
+    generator: str | None = None
+    """``"remesh"`` or ``"nonisometric"`` (generated sets)."""
+    params: dict = field(default_factory=dict)
+    """Generator keyword arguments, as recorded in ``generator.json``."""
+
+
+DEV_SETS = (
+    DevSet("tosca_r5k", "pairs_subset.csv", dataset="tosca_r5k"),
+    DevSet("scape", "pairs.csv", dataset="scape"),
+    DevSet("tosca_hires", "pairs.csv", dataset="tosca_hires"),
+    DevSet("scape_r5k", "pairs_features.csv", generator="remesh",
+           params={"dataset": "scape", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
+                   "iterations": 6}),
+    DevSet("tosca_r5k_r5k", "pairs.csv", generator="remesh",
+           params={"dataset": "tosca_r5k", "pairs_file": "pairs_subset.csv", "pairs": DEV_PAIRS,
+                   "vertices": DEV_VERTICES, "seed": DEV_SEED, "iterations": 6}),
+    DevSet("nonisometric", "pairs.csv", generator="nonisometric",
+           params={"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
+                   "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0}),
+)
+
+
+def default_dev_dir() -> Path:
+    """``$XDG_CACHE_HOME/geoshape/dev-sets`` (or ``~/.cache/…``); a temp folder if not writable."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "geoshape" / "dev-sets"
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+        return base
+    except OSError:
+        return Path(tempfile.gettempdir()) / "geoshape-dev-sets"
+
+
+def _matches(folder: Path, params: dict) -> bool:
+    """Whether ``folder/generator.json`` records every one of ``params``."""
+    try:
+        recorded = json.loads((folder / "generator.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return all(recorded.get(k) == v for k, v in params.items())
+
+
+def prepare_set(spec: DevSet, dev_dir: Path, log=print) -> Path:
+    """The folder of ``spec``: the shared dataset, or the generated set (made if missing or stale)."""
+    if spec.dataset is not None:
+        from geoshape.io.datasets import data_root
+
+        return data_root() / spec.dataset
+    folder = dev_dir / spec.name
+    if _matches(folder, spec.params):
+        return folder
+    log(f"generating {spec.name} into {folder} ({spec.params})")
+    p = dict(spec.params)
+    if spec.generator == "remesh":
+        from geoshape_datasets_gen.remesh import write_remeshed_set
+
+        write_remeshed_set(p.pop("dataset"), folder, n_pairs=p.pop("pairs"), n_vertices=p.pop("vertices"),
+                           **p)
+    else:
+        from geoshape_datasets_gen.nonisometric import write_nonisometric_set
+
+        write_nonisometric_set(folder, n_pairs=p.pop("pairs"), **p)
+    return folder
+
+
+def set_metrics(results, has_sym: bool = True) -> dict:
+    """Suite metrics of one method's :class:`PairResult` list on one set (see the module doc)."""
+    ok = [r for r in results if r.error is None]
+    crashed = len(results) - len(ok)
+    out = {"pairs": len(results), "mean": float("nan"), "mean_sym": float("nan"), "median_pair": float("nan"),
+           "failures": crashed, "flips": 0, "median_s": float("nan"), "crashed": crashed}
+    for t in SUITE_THRESHOLDS:
+        out[f"within_{t}"] = float("nan")
+    if not ok:
+        return out
+    direct = np.array([r.mean for r in ok])
+    sym = np.array([r.mean_sym for r in ok])
+    fail = direct > FAILURE_ERROR
+    errors = np.concatenate([r.errors for r in ok])
+    out.update(mean=float(direct.mean()), mean_sym=float(sym.mean()) if has_sym else float("nan"),
+               median_pair=float(np.median(direct)), failures=int(fail.sum()) + crashed,
+               flips=int((fail & (sym < FLIP_RATIO * direct)).sum()) if has_sym else 0,
+               median_s=float(np.median([r.seconds for r in ok])))
+    for t in SUITE_THRESHOLDS:
+        out[f"within_{t}"] = float(100 * np.mean(errors <= t))
+    return out
+
+
+def _fmt(x, pct: bool = False):
+    if isinstance(x, float):
+        if np.isnan(x):
+            return "—"
+        return f"{x:.1f}" if pct else x
+    return x
+
+
+def suite_table(rows: list[tuple[str, str, dict]]) -> str:
+    """Markdown table: one row per (set, method, :func:`set_metrics`)."""
+    from geoshape.bench.results import markdown_table
+
+    header = ["set", "method", "pairs", "mean error", "mean error (sym-aware)", "median pair error"]
+    header += [f"≤ {t} (%)" for t in SUITE_THRESHOLDS]
+    header += [f"failures (> {FAILURE_ERROR})", "flips", "median s/pair"]
+    body = []
+    for name, method, m in rows:
+        body.append([name, method, m["pairs"], _fmt(m["mean"]), _fmt(m["mean_sym"]), _fmt(m["median_pair"])]
+                    + [_fmt(m[f"within_{t}"], pct=True) for t in SUITE_THRESHOLDS]
+                    + [m["failures"], m["flips"], _fmt(m["median_s"])])
+    return markdown_table(header, body)
+
+
+def sensitivity_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, dict]]:
+    """(label, geoshape options) for every field of ``SENSITIVITY_FIELDS`` × every factor."""
+    from geoshape.correspondence.pipeline import GeoshapeOptions
+
+    defaults = GeoshapeOptions()
+    out = []
+    for name in SENSITIVITY_FIELDS:
+        value = getattr(defaults, name)
+        for f in factors:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                continue
+            new = value * f if isinstance(value, float) else max(int(round(value * f)), 1)
+            GeoshapeOptions(**{name: new})  # checked now, not after an hour
+            out.append((f"{name} {value} → {new} (×{f:g})", {name: new}))
+    return out
+
+
+def run_suite(args: argparse.Namespace) -> int:
+    from geoshape.bench.correspondence import evaluate_pairs, peer_methods
+    from geoshape.bench.experiments._common import machine_note
+    from geoshape.bench.results import markdown_table, update_results_section
+
+    dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
+    methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
+    log = lambda text: print(text, flush=True)  # noqa: E731
+    folders = [(spec, prepare_set(spec, dev_dir, log)) for spec in DEV_SETS]
+    rows, sets = [], []
+    for spec, folder in folders:
+        log(f"== {spec.name} ({folder}/{spec.pairs_file})")
+        results, has_sym = evaluate_pairs(folder, spec.pairs_file, methods, limit=args.limit,
+                                          landmarks=args.landmarks, seed=args.seed, spread=True,
+                                          log=log)
+        sets.append((spec, folder))
+        for m in methods:
+            rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
+    limit = f" --limit {args.limit}" if args.limit else ""
+    spread = f" (--limit: {args.limit} evenly spaced rows of each pairs file)" if args.limit else ""
+    cmd = (f"geoshape bench correspondence --suite generalization{limit} --methods {','.join(methods)} "
+           f"--landmarks {args.landmarks}" + (" --sensitivity" if args.sensitivity else ""))
+    set_list = ", ".join(f"{s.name} ({s.pairs_file})" for s, _ in sets)
+    text = (f"### 3D correspondence — generalization suite (issue #14)\n\nCommand: `{cmd}`. "
+            f"Sets: {set_list}{spread}; "
+            f"the generated ones ({DEV_PAIRS} pairs, {DEV_VERTICES} vertices, seed {DEV_SEED}) as in "
+            f"docs/datasets.md \"Dev sets\". Errors: geodesic distance / √area on the target, mean over "
+            f"pairs of the per-pair mean, direct and symmetry-aware (— where the set has no symmetric "
+            f"ground truth; SCAPE and remeshed SCAPE are scored on their 36 feature points); median pair "
+            f"error: median of the per-pair direct means; ≤ t: share of all landmarks (direct); failures: "
+            f"pairs with mean direct error > {FAILURE_ERROR} (or an exception); flips: failures whose "
+            f"symmetry-aware error is under {FLIP_RATIO:g} × the direct one. Times: end to end per pair "
+            f"({machine_note()}).\n\n{suite_table(rows)}\n")
+    if args.sensitivity:
+        variants = sensitivity_variants()
+        header = ["geoshape option"] + [s.name for s, _ in sets]
+        base = {name: m["mean"] for name, method, m in rows if method == "geoshape"}
+        body = [["default"] + [_fmt(base.get(s.name, float("nan"))) for s, _ in sets]]
+        for label, options in variants:
+            log(f"== sensitivity: {label}")
+            row = [label]
+            for spec, folder in sets:
+                results, has_sym = evaluate_pairs(folder, spec.pairs_file, ["geoshape"], limit=args.limit,
+                                                  landmarks=args.landmarks, seed=args.seed, options=options,
+                                                  spread=True,
+                                                  log=log)
+                row.append(_fmt(set_metrics(results, has_sym)["mean"]))
+            body.append(row)
+        text += ("\nSensitivity: mean direct error per set of the geoshape method with one default "
+                 "changed (×0.5 and ×2; counts rounded, at least 1).\n\n"
+                 + markdown_table(header, body) + "\n")
+    print(text)
+    if not args.no_results:
+        update_results_section(args.section or SECTION, text)
+    return 0

@@ -1,0 +1,95 @@
+"""``geoshape bench correspondence --suite generalization``: metrics, tables, set reuse, smoke run."""
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+
+from geoshape.bench import correspondence_suite as suite
+from geoshape.bench.correspondence import PairResult
+
+
+def _pair(name, direct, sym=None, seconds=1.0):
+    e = np.asarray(direct, dtype=float)
+    return PairResult("geoshape", name, e, e if sym is None else np.asarray(sym, dtype=float), seconds)
+
+
+def _planted():
+    return [
+        _pair("good", [0.01, 0.02, 0.025, 0.03], seconds=2.0),         # mean 0.02125, 3 of 4 ≤ 0.025
+        _pair("flip", [0.3, 0.3, 0.3, 0.3], [0.05, 0.05, 0.05, 0.05], seconds=4.0),  # failure, flip
+        _pair("lost", [0.2, 0.2, 0.2, 0.2], [0.15, 0.15, 0.15, 0.15], seconds=6.0),  # failure, no flip
+        _pair("edge", [0.1, 0.1, 0.1, 0.1], [0.01, 0.01, 0.01, 0.01], seconds=8.0),  # exactly 0.1: no failure
+        PairResult("geoshape", "crashed", error="boom"),
+    ]
+
+
+def test_metrics_count_failures_flips_and_thresholds():
+    m = suite.set_metrics(_planted())
+    assert m["pairs"] == 5 and m["crashed"] == 1
+    assert m["failures"] == 3  # flip, lost, crashed (0.1 is not > 0.1)
+    assert m["flips"] == 1  # only "flip": 0.05 < 0.5 × 0.3; "lost" 0.15 ≥ 0.1
+    direct = [0.02125, 0.3, 0.2, 0.1]
+    assert m["mean"] == pytest.approx(np.mean(direct))
+    assert m["mean_sym"] == pytest.approx(np.mean([0.02125, 0.05, 0.15, 0.01]))
+    assert m["median_pair"] == pytest.approx(np.median(direct))
+    assert m["within_0.025"] == pytest.approx(100 * 3 / 16)  # ≤ is inclusive
+    assert m["within_0.05"] == pytest.approx(100 * 4 / 16)
+    assert m["median_s"] == pytest.approx(5.0)  # crashed pairs have no time
+
+
+def test_metrics_without_symmetric_ground_truth_and_empty():
+    m = suite.set_metrics(_planted()[:2], has_sym=False)
+    assert m["failures"] == 1 and m["flips"] == 0 and math.isnan(m["mean_sym"])
+    empty = suite.set_metrics([PairResult("pyfm", "x", error="no")])
+    assert empty["pairs"] == 1 and empty["failures"] == 1 and math.isnan(empty["mean"])
+
+
+def test_table_has_a_row_per_set_and_method():
+    rows = [(s, m, suite.set_metrics(_planted(), has_sym=s != "tosca_hires"))
+            for s in ("tosca_r5k", "tosca_hires", "nonisometric") for m in ("geoshape", "pyfm")]
+    table = suite.suite_table(rows).splitlines()
+    assert len(table) == 2 + 6
+    assert "failures (> 0.1)" in table[0] and "flips" in table[0] and "≤ 0.025 (%)" in table[0]
+    body = [[c.strip() for c in line.strip("|").split("|")] for line in table[2:]]
+    assert [(r[0], r[1]) for r in body] == [(r[0], r[1]) for r in rows]
+    assert body[0][8:10] == ["3", "1"] and body[2][4] == "—"
+
+
+def test_sensitivity_variants_cover_the_required_defaults():
+    variants = suite.sensitivity_variants()
+    changed = [next(iter(o)) for _, o in variants]
+    for name in ("descriptor_ratio", "symmetry_ratio", "distortion_samples", "n_keep", "n_refine",
+                 "lb_k", "zoomout_samples"):
+        assert changed.count(name) == 2
+    assert ("lb_k 60 → 30 (×0.5)", {"lb_k": 30}) in variants
+
+
+def test_generated_set_is_reused_only_with_the_same_parameters(tmp_path, monkeypatch):
+    spec = suite.DevSet("noniso", "pairs.csv", generator="nonisometric", params={"pairs": 3, "seed": 0})
+    (tmp_path / "noniso").mkdir()
+    (tmp_path / "noniso" / "generator.json").write_text(json.dumps({"pairs": 3, "seed": 0, "other": 1}))
+    assert suite.prepare_set(spec, tmp_path) == tmp_path / "noniso"  # reused: no generator call
+    calls = []
+    import geoshape_datasets_gen.nonisometric as gen
+
+    monkeypatch.setattr(gen, "write_nonisometric_set", lambda out, **kw: calls.append((out, kw)))
+    stale = suite.DevSet("noniso", "pairs.csv", generator="nonisometric", params={"pairs": 4, "seed": 0})
+    suite.prepare_set(stale, tmp_path, log=lambda _t: None)
+    assert calls == [(tmp_path / "noniso", {"n_pairs": 4, "seed": 0})]
+
+
+def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
+    spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
+                        params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
+                                "resolution": 48})
+    monkeypatch.setattr(suite, "DEV_SETS", (spec,))
+    monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
+    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
+                              seed=0, sensitivity=False, no_results=False, section=None)
+    assert suite.run_suite(args) == 0
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert f"<!-- BEGIN {suite.SECTION} -->" in text and "| tiny | geoshape | 1 |" in text
+    assert (tmp_path / "tiny" / "generator.json").is_file()
