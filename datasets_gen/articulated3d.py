@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geoshape._options import check_choice
+from geoshape._options import check_choice, check_whole
 from geoshape.errors import GeoshapeError, InvalidOptionError
 
 __all__ = [
@@ -587,16 +587,6 @@ class Figure(NamedTuple):
     angles: np.ndarray
 
 
-def _check_count(name: str, value, lo: int, hi: int) -> int:
-    try:
-        ok = not isinstance(value, bool) and float(value).is_integer()
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok or not (lo <= int(value) <= hi):
-        raise InvalidOptionError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
 def generate_figure(
     cls: str,
     *,
@@ -637,7 +627,7 @@ def generate_figure(
     (2, 3)
     """
     check_choice("figure class", cls, CLASSES)
-    poses = _check_count("poses", poses, 1, 1000)
+    poses = check_whole("poses", poses, 1, 1000)
     ci = CLASSES.index(cls)
     inst_seed = int(np.random.SeedSequence([int(seed), ci, int(instance)]).generate_state(1)[0])
     sk = make_skeleton(cls, seed=inst_seed, variation=variation)
@@ -706,8 +696,8 @@ def write_collection(
         raise InvalidOptionError(f"give at least one figure class from {', '.join(CLASSES)}")
     if len(set(classes)) != len(classes):
         raise InvalidOptionError(f"figure classes repeat: {classes}")
-    instances = _check_count("instances", instances, 1, 100)
-    poses = _check_count("poses", poses, 1, 1000)
+    instances = check_whole("instances", instances, 1, 100)
+    poses = check_whole("poses", poses, 1, 1000)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files, labels, pairs = [], [], []

@@ -39,7 +39,7 @@ from geoshape_datasets_gen.defects3d import DEFECTS, add_debris, flip_patches, p
 from geoshape_datasets_gen.rigid3d import RIGID_CLASSES, build_rigid
 from geoshape_datasets_gen.union3d import concatenate, fuse_parts
 
-from geoshape._options import check_choice
+from geoshape._options import check_choice, check_whole
 from geoshape.errors import InvalidOptionError
 
 __all__ = ["CLASSES", "TESSELLATIONS", "Shape", "retessellate", "random_rotation", "random_similarity",
@@ -323,12 +323,6 @@ def _assign_defects(n: int, fraction: float, seed: int) -> list[str]:
     return out
 
 
-def _check_int(name: str, value, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not float(value).is_integer() or not (lo <= int(value) <= hi):
-        raise InvalidOptionError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
 def write_collection(
     out_dir: str | os.PathLike,
     *,
@@ -382,9 +376,9 @@ def write_collection(
         raise InvalidOptionError(f"give at least one class from {', '.join(CLASSES)}")
     if len(set(classes)) != len(classes):
         raise InvalidOptionError(f"classes repeat: {classes}")
-    per_class = _check_int("per_class", per_class, 1, 300)
-    vertices = _check_int("vertices", vertices, 300, 50000)
-    resolution = _check_int("resolution", resolution, 48, 320)
+    per_class = check_whole("per_class", per_class, 1, 300)
+    vertices = check_whole("vertices", vertices, 300, 50000)
+    resolution = check_whole("resolution", resolution, 48, 320)
     defect_fraction = float(defect_fraction)
     if not (0.0 <= defect_fraction <= 1.0):
         raise InvalidOptionError(f"defect_fraction must lie in [0, 1], got {defect_fraction!r}")

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geoshape._options import check_whole
 from geoshape.errors import DatasetError, InvalidOptionError
 from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
@@ -80,28 +81,6 @@ class Remeshed(NamedTuple):
     to_original: np.ndarray
     distance: np.ndarray
     mesh: object = None
-
-
-def _check_vertices(n_vertices) -> int:
-    try:
-        ok = not isinstance(n_vertices, bool) and float(n_vertices).is_integer()
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok or not (MIN_VERTICES <= int(n_vertices) <= MAX_VERTICES):
-        raise InvalidOptionError(
-            f"vertex count must be a whole number in [{MIN_VERTICES}, {MAX_VERTICES}], got {n_vertices!r}"
-        )
-    return int(n_vertices)
-
-
-def _check_seed(seed) -> int:
-    try:
-        ok = not isinstance(seed, bool) and float(seed).is_integer() and 0 <= int(seed) < 2**32
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise InvalidOptionError(f"seed must be a whole number in [0, 2**32 - 1], got {seed!r}")
-    return int(seed)
 
 
 def _area(V: np.ndarray, F: np.ndarray) -> float:
@@ -278,8 +257,8 @@ def remesh(V, F, n_vertices: int, seed: int = 0, *, iterations: int = 6) -> Reme
     (1000, True)
     """
     V, F = check_mesh(V, F, name="mesh to remesh")
-    n_want = _check_vertices(n_vertices)
-    rng = np.random.default_rng(_check_seed(seed))
+    n_want = check_whole("vertex count", n_vertices, MIN_VERTICES, MAX_VERTICES)
+    rng = np.random.default_rng(check_whole("seed", seed, 0, 2**32 - 1))
     centre = V.mean(axis=0)
     R = _random_rotation(rng)
     perm = rng.permutation(len(V))
@@ -545,8 +524,8 @@ def write_remeshed_set(
     from geoshape.io.datasets import mesh_stem, read_pairs, scape_feature_points
     from geoshape.io.mesh_io import load_mesh, save_mesh
 
-    n_vertices = _check_vertices(n_vertices)
-    seed = _check_seed(seed)
+    n_vertices = check_whole("vertex count", n_vertices, MIN_VERTICES, MAX_VERTICES)
+    seed = check_whole("seed", seed, 0, 2**32 - 1)
     folder = _resolve_dataset(dataset)
     out = Path(out_dir)
     if out.resolve() == folder.resolve() or folder.resolve() in out.resolve().parents:

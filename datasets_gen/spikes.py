@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geoshape._options import check_whole
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.mesh import face_normals
 from geoshape.io.interop import mesh_input
@@ -46,16 +47,6 @@ class Spiked(NamedTuple):
     faces: np.ndarray
     offsets: np.ndarray
     mesh: object = None
-
-
-def _whole_count(count) -> int:
-    try:
-        ok = not isinstance(count, bool) and float(count).is_integer() and float(count) >= 0
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise InvalidOptionError(f"spike count must be a whole number >= 0, got {count!r}")
-    return int(count)
 
 
 @mesh_input(returns_mesh=True)
@@ -103,7 +94,7 @@ def add_spikes(V, F, count: int, height: float, *, seed: int = 0) -> Spiked:
     (10, 20)
     """
     V, F = check_mesh(V, F, name="mesh to spike")
-    count = _whole_count(count)
+    count = check_whole("spike count", count, 0)
     try:
         height = float(height)
     except (TypeError, ValueError):

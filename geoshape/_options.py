@@ -1,4 +1,4 @@
-"""Checking string options against the registries that define them."""
+"""Checking options: strings against the registries that define them, whole numbers against ranges."""
 
 from __future__ import annotations
 
@@ -18,3 +18,25 @@ def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
         listed = ", ".join(repr(c) for c in allowed)
         raise InvalidOptionError(f"{name} must be one of {listed}; got {value!r}")
     return value
+
+
+def check_whole(name: str, value, lo: int, hi: int | None = None) -> int:
+    """``value`` as an int if it is a whole number in ``[lo, hi]`` (``hi`` None: no upper bound).
+
+    Floats with no fraction pass (``3.0``); bools, fractions, NaN and non-numbers do not.
+
+    >>> check_whole("poses", 3.0, 1, 10)
+    3
+    >>> check_whole("seed", -1, 0)
+    Traceback (most recent call last):
+    ...
+    geoshape.errors.InvalidOptionError: seed must be a whole number >= 0, got -1
+    """
+    try:
+        ok = not isinstance(value, bool) and float(value).is_integer()
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok or int(value) < lo or (hi is not None and int(value) > hi):
+        where = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+        raise InvalidOptionError(f"{name} must be a whole number {where}, got {value!r}")
+    return int(value)
