@@ -31,6 +31,7 @@ import numpy as np
 
 from geoshape._options import check_choice, check_whole
 from geoshape.errors import GeoshapeError, InvalidOptionError
+from geoshape.geometry.mesh import largest_component, signed_volume
 
 __all__ = [
     "CLASSES",
@@ -311,23 +312,6 @@ def _implicit_grid(sk: Skeleton, resolution: int, blend: float):
     return field, lo, h
 
 
-def _largest_component(V, F):
-    from geoshape.geometry.mesh import vertex_components
-
-    n = len(V)
-    _, label = vertex_components(n, F)
-    keep_label = np.bincount(label[F[:, 0]]).argmax()
-    F = F[label[F[:, 0]] == keep_label]
-    used = np.unique(F)
-    remap = np.full(n, -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    return V[used], remap[F]
-
-
-def _signed_volume(V, F) -> float:
-    return float(np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6.0)
-
-
 class Template(NamedTuple):
     """One instance of a figure class in its rest pose, ready to be posed.
 
@@ -444,8 +428,8 @@ def build_template(
     field, origin, h = _implicit_grid(skeleton, resolution, float(blend))
     Vm, Fm, _, _ = marching_cubes(field, level=0.0, spacing=(h, h, h), allow_degenerate=False)
     Vm = Vm.astype(np.float64) + origin
-    Vm, Fm = _largest_component(Vm, Fm.astype(np.int64))
-    if _signed_volume(Vm, Fm) < 0:
+    Vm, Fm = largest_component(Vm, Fm.astype(np.int64))
+    if signed_volume(Vm, Fm) < 0:
         Fm = Fm[:, ::-1].copy()
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=Vm, face_matrix=Fm))
@@ -466,7 +450,7 @@ def build_template(
             f"{skeleton.name}: generated surface is not a closed single-component manifold "
             f"({report}); try a higher resolution"
         )
-    if _signed_volume(V, F) < 0:
+    if signed_volume(V, F) < 0:
         F = F[:, ::-1].copy()
     W = _skinning_weights(skeleton, V, F, float(skin_sharpness), int(skin_smoothing))
     return Template(V, F, W, skeleton)

@@ -11,31 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEFECTS", "compact", "mean_edge_length", "punch_holes", "flip_patches", "stretch_axes",
+from geoshape.geometry.mesh import drop_unreferenced
+
+__all__ = ["DEFECTS", "mean_edge_length", "punch_holes", "flip_patches", "stretch_axes",
            "add_debris"]
 
 #: defect kinds of the mixed collection; ``components`` = several connected components
 DEFECTS = ("components", "holes", "flipped", "stretch")
-
-
-def compact(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Drop unreferenced vertices, keeping the order of the others.
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-    F : (m, 3) int64
-
-    Returns
-    -------
-    V : (n', 3) float64
-    F : (m, 3) int64
-        Renumbered faces.
-    """
-    used = np.zeros(len(V), dtype=bool)
-    used[F.ravel()] = True
-    remap = np.cumsum(used) - 1
-    return V[used], remap[F]
 
 
 def _centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -79,7 +61,7 @@ def punch_holes(V: np.ndarray, F: np.ndarray, rng: np.random.Generator, *, count
     d = np.sqrt(((C[:, None, :] - C[seeds][None]) ** 2).sum(axis=2))  # (m, count)
     drop = (d <= radii[None]).any(axis=1)
     drop[seeds] = True
-    return compact(V, F[~drop])
+    return drop_unreferenced(V, F[~drop])
 
 
 def flip_patches(V: np.ndarray, F: np.ndarray, rng: np.random.Generator, *, fraction: float = 0.1,

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from geoshape._options import check_choice
+from geoshape.geometry.mesh import signed_volume
 
 __all__ = ["RIGID_CLASSES", "Parts", "build_rigid", "revolve", "tube", "prism", "box", "cylinder", "sphere"]
 
@@ -51,8 +52,7 @@ class Parts(NamedTuple):
 def _outward(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
-    vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum()
-    return V, (F if vol >= 0 else F[:, ::-1].copy())
+    return V, (F if signed_volume(V, F) >= 0 else F[:, ::-1].copy())
 
 
 def _transform(V: np.ndarray, R=None, t=(0.0, 0.0, 0.0)) -> np.ndarray:

@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import GeoshapeError, InvalidOptionError
+from geoshape.geometry.mesh import largest_component, signed_volume
 
-__all__ = ["concatenate", "signed_volume", "winding_grid", "fuse_parts", "largest_component"]
+__all__ = ["concatenate", "winding_grid", "fuse_parts"]
 
 #: fractional grid offset (in voxels) that keeps ray columns off the primitives' round numbers
 _JITTER = np.array([0.1372, 0.2913, 0.0517])
@@ -49,11 +50,6 @@ def concatenate(parts) -> tuple[np.ndarray, np.ndarray]:
         Fs.append(np.asarray(F, dtype=np.int64) + offset)
         offset += len(V)
     return np.concatenate(Vs), np.concatenate(Fs)
-
-
-def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
-    """Signed volume of a closed mesh ``V (n, 3)``, ``F (m, 3)`` (positive if outward)."""
-    return float(np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6.0)
 
 
 def winding_grid(V: np.ndarray, F: np.ndarray, lo: np.ndarray, h: float, shape) -> np.ndarray:
@@ -198,27 +194,3 @@ def fuse_parts(
     if signed_volume(Vm, Fm) < 0:
         Fm = Fm[:, ::-1].copy()
     return Vm, Fm
-
-
-def largest_component(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The face-connected component with the most faces, vertices renumbered in order.
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-    F : (m, 3) int64
-
-    Returns
-    -------
-    V : (n', 3) float64
-    F : (m', 3) int64
-    """
-    from geoshape.geometry.mesh import vertex_components
-
-    _, label = vertex_components(len(V), F)
-    keep = np.bincount(label[F[:, 0]]).argmax()
-    F = F[label[F[:, 0]] == keep]
-    used = np.unique(F)
-    remap = np.full(len(V), -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    return V[used], remap[F]

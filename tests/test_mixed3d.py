@@ -17,9 +17,10 @@ from geoshape_datasets_gen._topology import topology_report
 from geoshape_datasets_gen.defects3d import DEFECTS, add_debris, flip_patches, punch_holes
 from geoshape_datasets_gen.mixed3d import CLASSES, write_collection
 from geoshape_datasets_gen.rigid3d import box, sphere
-from geoshape_datasets_gen.union3d import fuse_parts, signed_volume, winding_grid
+from geoshape_datasets_gen.union3d import fuse_parts, winding_grid
 
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.mesh import signed_volume
 from geoshape.io.mesh_io import load_mesh
 
 PER_CLASS, VERTICES, RESOLUTION = 2, 400, 48

@@ -14,13 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
-from geoshape.geometry.mesh import face_areas, face_normals
+from geoshape.geometry.mesh import face_areas, face_normals, signed_volume
 
 
 def outward_sign(V, F) -> float:
     """+1 if the faces are wound so normals point out of the enclosed volume, else −1."""
-    vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum()
-    return 1.0 if vol >= 0 else -1.0
+    return 1.0 if signed_volume(V, F) >= 0 else -1.0
 
 
 def vertex_normals(V, F) -> np.ndarray:

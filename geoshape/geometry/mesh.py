@@ -190,6 +190,34 @@ def vertex_components(n: int, F) -> tuple[int, np.ndarray]:
     return connected_components(A.tocsr(), directed=False)
 
 
+def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
+    """Signed volume enclosed by ``F (m, 3)`` on ``V (n, 3)``: positive when faces wind outward. O(m)."""
+    return float(np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6.0)
+
+
+def drop_unreferenced(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(V', F')`` without the vertices no face uses, the others kept in order. O(n + m).
+
+    >>> V, F = drop_unreferenced(np.eye(4, 3), np.array([[0, 2, 3]]))
+    >>> len(V), F.tolist()
+    (3, [[0, 1, 2]])
+    """
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    remap = np.cumsum(used) - 1
+    return V[used], remap[F]
+
+
+def largest_component(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The connected component with the most faces, as ``(V', F')`` with vertices kept in order.
+
+    O(n + m) (:func:`vertex_components`).
+    """
+    _, label = vertex_components(len(V), F)
+    keep = np.bincount(label[F[:, 0]]).argmax()
+    return drop_unreferenced(V, F[label[F[:, 0]] == keep])
+
+
 def _length_eps(V: np.ndarray) -> float:
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))) if len(V) else 0.0
     return ZERO_LENGTH_EPS * (diag if diag > 0 else 1.0)
