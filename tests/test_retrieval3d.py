@@ -75,8 +75,8 @@ def test_ccd_invariance_and_discrimination(figures):
     assert _dist("ccd", a, b) < 0.2 * _dist("ccd", a, c)
 
 
-@pytest.mark.parametrize("name", ["evd", "evd_heat", "shapedna", "gsv", "d2_emb", "shd_emb", "lfd_emb",
-                                  "ccd"])
+@pytest.mark.parametrize("name", ["evd", "evd_heat", "shapedna", "wks", "gsv", "d2_emb", "shd_emb",
+                                  "lfd_emb", "ccd"])
 def test_reposed_copy_closer_than_other_class(name, figures):
     """Bending-invariant descriptors: a re-posed copy is nearer than another class."""
     (V0, F0), (V1, F1) = figures["biped"]
@@ -85,6 +85,41 @@ def test_reposed_copy_closer_than_other_class(name, figures):
     D = descriptor_distances(name, X, X)
     assert D[0, 1] < min(D[0, 2], D[0, 3]), D
     assert D[2, 3] < min(D[2, 0], D[2, 1]), D
+
+
+def test_wks_vertex_order_and_reposing(figures):
+    """WKS quantiles: a vertex permutation changes nothing (up to the eigensolver), a re-posed copy
+    is much nearer than another class, and the descriptor is sorted per band."""
+    (V0, F0), (V1, F1) = figures["biped"]
+    W, G = figures["quadruped"][0]
+    perm = np.random.default_rng(5).permutation(len(V0))
+    inv = np.argsort(perm)
+    a = compute_descriptor(V0, F0, "wks")
+    assert a.shape == (16, 16) and np.all(np.diff(a, axis=1) >= 0)
+    shuffled = compute_descriptor(V0[perm], inv[F0], "wks")
+    other = _dist("wks", a, compute_descriptor(W, G, "wks"))
+    assert _dist("wks", a, shuffled) <= 1e-4 * other
+    assert _dist("wks", a, compute_descriptor(V1, F1, "wks")) <= 0.5 * other
+
+
+def test_wave_kernel_bands_and_weighted_quantiles():
+    from geoshape.retrieval.descriptors.wks import weighted_quantiles
+    from geoshape.spectral.laplacian import laplacian_basis, wave_kernel_bands
+
+    V, F = icosphere(3)
+    basis = laplacian_basis(V, F, k=30)
+    W = wave_kernel_bands(basis, np.log([30.0, 100.0, 300.0]), 0.5)
+    assert W.shape == (len(V), 3) and np.all(W >= 0)
+    np.testing.assert_allclose(basis.mass @ W, 1.0, rtol=1e-6)  # unit area-mean per band
+    # a band no eigenvalue reaches is all zero, not NaN
+    assert np.all(wave_kernel_bands(basis, [np.log(1e9)], 0.1) == 0)
+    with pytest.raises(InvalidOptionError):
+        wave_kernel_bands(basis, [1.0], 0.0)
+    x = np.array([[3.0], [1.0], [2.0], [4.0]])
+    # equal weights: midpoints at 1/8, 3/8, 5/8, 7/8 of the sorted values
+    np.testing.assert_allclose(weighted_quantiles(x, np.ones(4), [0.125, 0.5, 0.875]), [[1.0, 2.5, 4.0]])
+    # a heavy value pulls the median
+    assert weighted_quantiles(x, [1.0, 1.0, 1.0, 10.0], [0.5])[0, 0] > 3.5
 
 
 def test_descriptor_shapes_and_metrics():

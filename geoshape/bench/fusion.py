@@ -17,7 +17,7 @@ from __future__ import annotations
 HELP = "3D late fusion: single descriptors vs fixed / query-adaptive fusion, LOCO weights, sensitivity"
 
 DEFAULT_SETS = "tosca_r5k,generated,mixed3d"
-DEFAULT_COMPONENTS = "evd_heat,shapedna,lfd,shd"
+DEFAULT_COMPONENTS = "evd_heat,shapedna,lfd,shd,wks"
 
 
 def add_arguments(parser) -> None:

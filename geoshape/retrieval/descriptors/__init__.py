@@ -21,6 +21,9 @@ Spectral
     configuration; ``evd_thesis`` is the thesis' own (60 unweighted samples, sigma = max);
     ``evd_heat`` its narrow-kernel limit computed from exact Laplace–Beltrami eigenvalues
     (no sampling, no affinity choice, so it is listed with the original-mesh descriptors).
+    ``wks``: area-weighted quantiles of log wave kernel signatures in fixed bands of
+    unit-area eigenvalues, L1 (a per-band 1-Wasserstein distance;
+    :mod:`geoshape.retrieval.descriptors.wks`).
     ``ccd``: the correspondence cost descriptor — the 5-D embedding itself, subsampled to
     ``CCD_POINTS`` farthest points in embedding space;
     two are compared by :func:`ccd_distance` (best match after aligning the eigenvectors).
@@ -342,6 +345,13 @@ def _evd_heat(V, F, *, seed=0):
 
 
 @mesh_input
+def _wks(V, F, *, seed=0):
+    from geoshape.retrieval.descriptors.wks import wks_descriptor
+
+    return wks_descriptor(V, F)
+
+
+@mesh_input
 def _shd(V, F, *, seed=0):
     from geoshape.retrieval.descriptors.shd import shd_descriptor
 
@@ -374,6 +384,8 @@ MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
                        d2_descriptor, "chi2", "original", _RIGID),
         DescriptorSpec("shapedna", "first 20 Laplace-Beltrami eigenvalues, unit area (Reuter et al.)",
                        shapedna_descriptor, "l2", "original", _INTRINSIC),
+        DescriptorSpec("wks", "area-weighted quantiles of log wave kernel signatures, 16 bands x 16 "
+                       "levels, from 100 Laplace-Beltrami eigenpairs", _wks, "l1", "original", _INTRINSIC),
         DescriptorSpec("gsv", "singular values of the sampled geodesic distance matrix",
                        gsv_descriptor, "l1", "original", _INTRINSIC),
         DescriptorSpec("shd", "spherical harmonics energies, 16 shells x l<=16 (Kazhdan et al.)",
