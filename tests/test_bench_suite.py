@@ -61,8 +61,7 @@ def test_table_has_a_row_per_set_and_method():
 def test_sensitivity_variants_cover_the_required_defaults():
     variants = suite.sensitivity_variants()
     changed = [next(iter(o)) for _, o in variants]
-    for name in ("descriptor_ratio", "symmetry_ratio", "distortion_samples", "n_keep", "n_refine",
-                 "lb_k", "zoomout_samples"):
+    for name in ("distortion_samples", "n_keep", "n_refine", "lb_k", "zoomout_samples", "descriptor_k"):
         assert changed.count(name) == 2
     assert ("lb_k 60 → 30 (×0.5)", {"lb_k": 30}) in variants
 

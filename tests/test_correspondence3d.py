@@ -56,6 +56,41 @@ def test_geodesic_distortion_is_zero_for_an_isometry_and_large_for_a_scramble():
     assert scramble > 0.3
 
 
+def test_geodesic_distortion_shares_one_dijkstra_among_maps_with_common_images():
+    from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
+
+    V, _, F = figure()
+    m1, m2 = PreparedMesh(V, F), PreparedMesh(V, F)
+    rows = np.arange(0, len(V), len(V) // 25)
+    shifted = np.roll(rows, 1)
+    together = geodesic_distortion(m1, m2, rows, rows, shifted, rows)
+    alone = [geodesic_distortion(m1, m2, rows, t)[0] for t in (rows, shifted, rows)]
+    assert together == pytest.approx(alone, abs=1e-12)
+    assert together[0] == together[2] == pytest.approx(0.0, abs=1e-12) and together[1] > 0.1
+
+
+def test_laplacian_of_fewer_pairs_is_a_view_of_the_larger_solve():
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+
+    V, _, F = figure()
+    m = PreparedMesh(V, F)
+    big = m.laplacian(30)
+    small = m.laplacian(12)
+    assert small.k == 12 and np.shares_memory(small.evecs, big.evecs)
+    assert np.array_equal(small.evals, big.evals[:12])
+
+
+def test_final_zoomout_keeps_an_exact_map_and_can_be_turned_off():
+    V, _, F = figure()
+    rng = np.random.default_rng(11)
+    perm = rng.permutation(len(V))
+    inv = np.argsort(perm)
+    with_final = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=50, final_step=10, descriptor_map=False)
+    without = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=30, descriptor_map=False)
+    assert exact_share(with_final.p2p_12, inv) >= 0.99
+    assert "final_zoomout" in with_final.timings and "final_zoomout" not in without.timings
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ["geoshape", "jz"])
 def test_invariance_to_rotation_translation_and_scale(method):

@@ -70,8 +70,8 @@ def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
 
 @pytest.mark.parametrize("name, value", [
     ("lb_k", 0), ("lb_k", 2.5), ("k", True), ("n_refine", -1), ("seed", -1), ("n_samples", 0),
-    ("symmetry_completion", "yes"), ("descriptor_map", 1), ("symmetry_ratio", 0.0),
-    ("descriptor_ratio", float("nan")), ("descriptor_ratio", "1.15"), ("reorder", "random"),
+    ("symmetry_completion", "yes"), ("descriptor_map", 1), ("distortion_samples", 0),
+    ("distortion_samples", 1.5), ("descriptor_k", "30"), ("reorder", "random"),
 ])
 def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
     V, F = _octahedron()
@@ -95,10 +95,10 @@ def test_defaults_and_accepted_values():
     assert len(GeoshapeOptions.names()) == 21
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
-    numpy_values = GeoshapeOptions(lb_k=np.int64(40), symmetry_ratio=np.float32(1.5),
+    numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
                                    descriptor_map=np.bool_(False))
     assert numpy_values.lb_k == 40 and not numpy_values.descriptor_map
-    assert GeoshapeOptions(n_refine=0, icp_iterations=0, n_samples=300, symmetry_ratio=2).n_refine == 0
+    assert GeoshapeOptions(n_refine=0, icp_iterations=0, n_samples=300).n_refine == 0
 
 
 def test_every_option_has_a_one_line_docstring():
@@ -129,15 +129,21 @@ def test_candidate_summary_keeps_the_alternatives_fields():
     assert descriptors.cost is None
 
 
-def test_decision_prefers_the_wanted_orientation_then_energy():
-    def refined(energy, unwanted, source="spectral"):
+def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
+    def refined(energy, distortion, unwanted, source="spectral"):
         return Candidate(source=source, refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
-                         refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted)
+                         refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted,
+                         distortion=distortion)
 
-    mirrored, direct, other = refined(0.01, True), refined(0.03, False), refined(0.05, False)
-    chosen, distortion = pipeline.decide(None, [mirrored, other, direct], GeoshapeOptions(), {})
-    assert chosen is direct and distortion is None
-    # a descriptor candidate far from the best spectral one in energy: no distortion measured
-    chosen, distortion = pipeline.decide(None, [direct, refined(0.2, False, "descriptors")],
-                                         GeoshapeOptions(), {})
-    assert chosen is direct and distortion is None
+    mirrored, direct, other = refined(0.01, 0.1, True), refined(0.03, 0.1, False), refined(0.05, 0.1, False)
+    assert pipeline.decide([mirrored, other, direct], GeoshapeOptions()) is direct
+    # distortion × energy: less distortion outweighs a little more energy, and the reverse
+    smooth_but_wrong, right = refined(0.02, 0.30, False, "descriptors"), refined(0.03, 0.10, False)
+    assert pipeline.decide([smooth_but_wrong, right], GeoshapeOptions()) is right
+    assert pipeline.decision_score(right) == pytest.approx(0.003)
+    # scaling either factor by the same amount for every candidate never changes the choice
+    for scale in (0.1, 10.0):
+        pool = [refined(c.refined_energy * scale, c.distortion, False) for c in (smooth_but_wrong, right)]
+        assert pipeline.decide(pool, GeoshapeOptions()) is pool[1]
+    # nothing of the wanted orientation: the best mirrored map rather than nothing
+    assert pipeline.decide([mirrored, refined(0.02, 0.1, True)], GeoshapeOptions()) is mirrored

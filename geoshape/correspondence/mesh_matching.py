@@ -136,11 +136,13 @@ class PreparedMesh:
             geodesics=geodesics, seed=seed, solver=self.solver(geodesics)))
 
     def laplacian(self, k: int):
+        """The ``k`` lowest Laplace–Beltrami eigenpairs: the leading columns of a larger
+        cached basis when there is one (a view), else computed and cached."""
         from geoshape.spectral.laplacian import laplacian_basis
 
         best = [key for key in self._cache if key[0] == "laplacian" and key[1] >= k]
         if best:
-            return self._cache[min(best)]
+            return self._cache[min(best)].leading(k)
         return self.cached(("laplacian", k), lambda: laplacian_basis(self.V, self.F, k, name=self.name))
 
     def descriptor_operators(self, k: int, lb_k: int):

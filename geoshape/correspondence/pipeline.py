@@ -6,10 +6,12 @@
 1. :func:`candidate_alignments` — spectral embeddings and the signed eigenvector orders;
 2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
 3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut;
-4. :func:`refine` — the most promising screened candidates refined by ZoomOut, plus
-   :func:`descriptor_candidate` (wave kernel signatures) and :func:`complete_symmetry`;
-5. :func:`decide` — orientation first, then energy, then geodesic distortion on near ties;
-6. :func:`full_resolution` — the chosen map at every vertex of both meshes.
+4. :func:`refine` — the cheapest screened candidates refined by ZoomOut, plus
+   :func:`descriptor_candidate` (wave kernel signatures), :func:`measure_distortion` and,
+   when the best map is mirrored, :func:`complete_symmetry`;
+5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
+6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
+   full-resolution ZoomOut to ``final_k`` for precision.
 
 Every candidate map is a :class:`Candidate` with its scores by name. See
 docs/correspondence3d.md ("Pipeline stages") for what each stage costs.
@@ -20,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import itertools
-import math
 import numbers
 import time
 from collections.abc import Mapping
@@ -50,10 +51,6 @@ def _int(low: int, *, none: bool = False) -> dict:
     return {"kind": "int", "low": low, "none": none}
 
 
-def _real(low: float, *, strict: bool = True) -> dict:
-    return {"kind": "real", "low": low, "strict": strict}
-
-
 _BOOL = {"kind": "bool"}
 
 
@@ -80,6 +77,10 @@ class GeoshapeOptions:
     """Farthest-point control points of the thin-plate spline."""
     lb_k: int = field(default=60, metadata=_int(1))
     """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
+    final_k: int = field(default=60, metadata=_int(1))
+    """Basis size the final full-resolution ZoomOut grows to from ``lb_k`` (≤ ``lb_k``: none)."""
+    final_step: int = field(default=10, metadata=_int(1))
+    """Basis size added per iteration of the final full-resolution ZoomOut."""
     screen_k: int = field(default=16, metadata=_int(1))
     """Basis size at the end of the coarse screening ZoomOut (at most ``lb_k``)."""
     screen_samples: int = field(default=500, metadata=_int(1))
@@ -95,19 +96,15 @@ class GeoshapeOptions:
     seed: int = field(default=0, metadata=_int(0))
     """Seed of every sampling (results are deterministic for a given seed)."""
     symmetry_completion: bool = field(default=True, metadata=_BOOL)
-    """Try a mirrored map composed with mesh 2's own left–right symmetry (see ``symmetry_ratio``)."""
-    symmetry_ratio: float = field(default=1.25, metadata=_real(0.0))
-    """Completion runs when the best wanted-orientation energy exceeds this × the best unwanted one."""
+    """If the best-scoring map is mirrored, also try it composed with mesh 2's own mirror."""
     prefer: str = "preserving"
     """Orientation of mapped triangles to choose: ``"preserving"`` or ``"reversing"`` (mirror)."""
     descriptor_map: bool = field(default=True, metadata=_BOOL)
     """Add the candidate from wave kernel signatures with an orientation term."""
     descriptor_k: int = field(default=30, metadata=_int(1))
     """Basis size of the descriptor functional map (skipped below 3 after clipping to ``lb_k``)."""
-    descriptor_ratio: float = field(default=1.15, metadata=_real(0.0))
-    """Descriptor and best spectral map within this energy ratio: geodesic distortion decides."""
-    distortion_samples: int = field(default=32, metadata=_int(1))
-    """Farthest samples of mesh 1 whose pairwise geodesics measure distortion."""
+    distortion_samples: int = field(default=128, metadata=_int(1))
+    """Farthest samples of mesh 1 whose pairwise geodesics measure a refined map's distortion."""
 
     def __post_init__(self):
         check_choice("geoshape option reorder", self.reorder, REORDER_METHODS)
@@ -127,12 +124,6 @@ class GeoshapeOptions:
                     what = "None or an integer" if rule["none"] else "an integer"
                     raise InvalidOptionError(
                         f"geoshape option {f.name} must be {what} >= {rule['low']}, got {value!r}")
-            elif (not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_))
-                  or not math.isfinite(value) or value < rule["low"]
-                  or (rule["strict"] and value == rule["low"])):
-                bound = ">" if rule["strict"] else ">="
-                raise InvalidOptionError(
-                    f"geoshape option {f.name} must be a finite number {bound} {rule['low']}, got {value!r}")
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -163,8 +154,8 @@ class Candidate:
     """One candidate map of mesh 1 onto mesh 2, with its scores by name.
 
     Screening fills ``coarse_map``, ``zoomout_energy`` and ``orientation``; refinement fills
-    ``refined_map``, ``refined_energy``, ``refined_orientation`` and ``unwanted``; the
-    decision may fill ``distortion``. Energies are ‖CᵀC − I‖_F / k of the functional map C
+    ``refined_map``, ``refined_energy``, ``refined_orientation`` and ``unwanted``;
+    :func:`measure_distortion` fills ``distortion``. Energies are ‖CᵀC − I‖_F / k of the functional map C
     (0 for an isometry, lower is better); orientation scores are in [−1, 1] (+1: every
     mapped triangle keeps its orientation, −1: a mirror image).
     """
@@ -190,7 +181,7 @@ class Candidate:
     symmetry_completed: bool = False
     """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
     distortion: float | None = None
-    """Mean normalised geodesic distortion, when the decision had to measure it."""
+    """Mean normalised geodesic distortion of the refined map (:func:`geodesic_distortion`)."""
 
     @property
     def cost(self) -> float | None:
@@ -205,13 +196,15 @@ class Candidate:
     def summary(self) -> dict:
         """The candidate as one entry of ``Correspondence.alternatives`` (JSON output)."""
         if self.source == "descriptors":
-            return {"source": "descriptors", "refined_energy": self.refined_energy,
-                    "refined_orientation": self.refined_orientation}
-        a = self.alignment
-        out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy,
-               "orientation": self.orientation}
+            out = {"source": "descriptors"}
+        else:
+            a = self.alignment
+            out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy,
+                   "orientation": self.orientation}
         if self.refined:
             out.update(refined_energy=self.refined_energy, refined_orientation=self.refined_orientation)
+        if self.distortion is not None:
+            out["distortion"] = self.distortion
         return out
 
 
@@ -229,6 +222,8 @@ class PairContext:
     b2: LaplacianBasis
     lb_k: int
     """Eigenpairs used: ``lb_k`` clipped to n − 1 of both meshes."""
+    final_k: int
+    """Basis size of the final full-resolution ZoomOut: ``final_k`` clipped to n − 1, at least ``lb_k``."""
     screen_k: int
     """``screen_k`` clipped to ``lb_k``."""
     s1: np.ndarray
@@ -307,6 +302,8 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
     seed = options.seed
     lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
     screen_k = min(options.screen_k, lb_k)
+    final_k = max(lb_k, min(options.final_k, m1.n - 1, m2.n - 1))
+    m1.laplacian(final_k), m2.laplacian(final_k)  # one eigen-solve per mesh for every stage
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
     zs, ss = options.zoomout_samples, options.screen_samples
     s1, s2 = m1.samples(zs, seed), m2.samples(zs, seed)
@@ -323,7 +320,7 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
 
         normals = (outward_vertex_normals(m1.V, m1.F), outward_vertex_normals(m2.V, m2.F))
         screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1]
-    return PairContext(m1, m2, A, B, b1, b2, lb_k, screen_k, s1, s2, c1, c2, large, normals,
+    return PairContext(m1, m2, A, B, b1, b2, lb_k, final_k, screen_k, s1, s2, c1, c2, large, normals,
                        screen_to_refine, seed)
 
 
@@ -402,42 +399,25 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
     return c
 
 
-def first_to_refine(ranked: list[Candidate]) -> list[Candidate]:
-    """The most isometric candidate, then the most isometric ones of clearly positive and of
-    clearly negative coarse orientation (at least half the strongest score of that sign).
-    Coarse scores cluster near ±0.3 for the direct and the mirrored map and near 0 for mixed
-    ones: on coarse maps the orientation signal is weak, on refined maps it is decisive.
-    ``ranked`` is sorted by ``zoomout_energy``; O(len(ranked)).
-    """
-    queue = [ranked[0]]
-    for side in (1.0, -1.0):  # the most isometric clearly direct and clearly mirrored candidates
-        group = [c for c in ranked if np.sign(c.orientation) == side]
-        if group:
-            strongest = max(abs(c.orientation) for c in group)
-            first = next(c for c in group if abs(c.orientation) >= 0.5 * strongest)
-            if all(first is not q for q in queue):
-                queue.append(first)
-    return queue
-
-
 def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
            timings: dict) -> list[Candidate]:
-    """Stage 4: refine :func:`first_to_refine` of ``ranked`` (sorted by ``zoomout_energy``);
-    while every refined map has the unwanted orientation, refine the candidate of most wanted
-    coarse orientation next — at most ``max(n_refine, 1)`` in all. Fills the refined scores
-    of those candidates and returns them in the order refined; O(n_refine · iter s^2 lb_k).
+    """Stage 4: refine the ``max(n_refine, 1)`` cheapest of ``ranked`` (sorted by
+    ``zoomout_energy``, whatever their coarse orientation: coarse scores are weak); while
+    every refined map has the unwanted orientation, refine the candidate of most wanted
+    coarse orientation next, at most ``max(n_refine, 1)`` more. Fills the refined scores and
+    returns the refined candidates in the order refined; O(n_refine · iter s^2 lb_k).
     """
     t = time.perf_counter()
-    queue = first_to_refine(ranked)
-    refined: list[Candidate] = []
-    while queue and len(refined) < max(options.n_refine, 1):
-        c = queue.pop(0)
+    n = max(options.n_refine, 1)
+    refined = [_refine_into(ctx, c, c.coarse_map, options) for c in ranked[:n]]
+    rest = list(ranked[n:])
+    sign = 1.0 if options.prefer == "preserving" else -1.0
+    for _ in range(n):
+        if not rest or not all(r.unwanted for r in refined):
+            break
+        c = max(rest, key=lambda x: (sign * x.orientation, -x.zoomout_energy))
+        rest.remove(c)
         refined.append(_refine_into(ctx, c, c.coarse_map, options))
-        if not queue and all(r.unwanted for r in refined):
-            rest = [x for x in ranked if not x.refined]
-            if rest:
-                sign = 1.0 if options.prefer == "preserving" else -1.0
-                queue.append(max(rest, key=lambda x: (sign * x.orientation, -x.zoomout_energy)))
     timings["refinement"] = time.perf_counter() - t
     return refined
 
@@ -468,29 +448,24 @@ def descriptor_candidate(ctx: PairContext, options: GeoshapeOptions, timings: di
 
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
                       timings: dict) -> Candidate | None:
-    """Stage 4c: when a map of the unwanted orientation is clearly more isometric than every
-    map of the wanted one (energy ratio above ``symmetry_ratio``), the wanted map is that
-    map followed by the intrinsic left–right symmetry of mesh 2 (mesh 2 matched to itself
-    with ``prefer="reversing"``, orientation reversed). Returns the completed candidate, or
+    """Stage 4c: when the refined map of lowest :func:`decision_score` has the unwanted
+    orientation, that map followed by the intrinsic left–right symmetry of mesh 2 (mesh 2
+    matched to itself with ``prefer="reversing"``) is a wanted-orientation candidate as
+    isometric as it. Returns the completed candidate (its distortion not yet measured), or
     None. Cost when it fires: one more pipeline run on (mesh 2, mesh 2) and one refinement.
-
-    Mirror maps of a symmetric shape are as isometric as direct ones, so a ratio near 1
-    fires on noise: on tosca_r5k it added about 4 s to a third of the pairs and helped none.
     """
-    wrong = [c for c in refined if c.unwanted]
-    right = [c for c in refined if not c.unwanted]
-    if not (options.symmetry_completion and options.prefer == "preserving" and wrong and (
-            not right or min(c.refined_energy for c in right)
-            > options.symmetry_ratio * min(c.refined_energy for c in wrong))):
+    if not (options.symmetry_completion and options.prefer == "preserving" and refined):
+        return None
+    best = min(refined, key=decision_score)
+    if not best.unwanted:
         return None
     t = time.perf_counter()
     mirror = run_geoshape(ctx.m2, ctx.m2, dataclasses.replace(options, prefer="reversing",
                                                               symmetry_completion=False))
-    best_wrong = min(wrong, key=lambda c: c.refined_energy)
     completed = None
     if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
-        completed = dataclasses.replace(best_wrong, symmetry_completed=True)
-        _refine_into(ctx, completed, mirror.p2p_12[best_wrong.refined_map], options, on_refinement_rows=True)
+        completed = dataclasses.replace(best, symmetry_completed=True, distortion=None)
+        _refine_into(ctx, completed, mirror.p2p_12[best.refined_map], options, on_refinement_rows=True)
     timings["symmetry"] = time.perf_counter() - t
     return completed
 
@@ -498,56 +473,74 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
 def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images) -> list[float]:
     """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
     distances divided by their median, so uniform scale does not count). Each of ``images``
-    gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Mesh 1's rows
-    are computed once. O((1 + maps) s n log n) for s rows (graph Dijkstra).
+    gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Graph Dijkstra
+    runs once from ``rows1`` and once from the distinct images of all maps:
+    O((s + u) n log n) for s rows and u distinct images.
     """
     rows1 = np.asarray(rows1, dtype=np.int64)
+    D1 = m1.solver("graph").distances(rows1)[:, rows1]
+    D1 = D1 / max(float(np.median(D1)), 1e-300)
+    targets = [np.asarray(t, dtype=np.int64) for t in images]
+    if not targets:
+        return []
+    sources, where = np.unique(np.concatenate(targets), return_inverse=True)
+    D2_all = m2.solver("graph").distances(sources)[:, sources]
+    out = []
+    for i in range(len(targets)):
+        pos = where[i * len(rows1):(i + 1) * len(rows1)]
+        D2 = D2_all[np.ix_(pos, pos)]
+        out.append(float(np.mean(np.abs(D1 - D2 / max(float(np.median(D2)), 1e-300)))))
+    return out
 
-    def normalised(mesh, rows):
-        D = mesh.solver("graph").distances(rows)[:, rows]
-        return D / max(float(np.median(D)), 1e-300)
 
-    D1 = normalised(m1, rows1)
-    return [float(np.mean(np.abs(D1 - normalised(m2, np.asarray(t, dtype=np.int64))))) for t in images]
-
-
-def decide(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions, timings: dict):
-    """Stage 5: the chosen candidate of ``refined`` — wanted orientation first, then the lowest
-    refined energy. When the descriptor candidate and the best spectral one (both wanted)
-    are within ``descriptor_ratio`` in energy, the energy cannot tell them apart (stretched
-    TOSCA meshes: the descriptor map won by 3–12 % with wrong maps; a generated biped: it
-    lost by 1 % with the right one), so the geodesic distortion of ``distortion_samples``
-    sample pairs decides: O(3 s n log n) Dijkstra for s samples.
-
-    Returns ``(chosen, distortion)``, ``distortion`` being ``{"descriptors": …, "spectral": …}``
-    when it was measured, else None.
-    """
-    chosen = min(refined, key=lambda c: (c.unwanted, c.refined_energy))
-    wanted = [c for c in refined if not c.unwanted]
-    by_descriptors = [c for c in wanted if c.source == "descriptors"]
-    spectral = [c for c in wanted if c.source != "descriptors"]
-    if not (by_descriptors and spectral):
-        return chosen, None
-    d, sp = by_descriptors[0], min(spectral, key=lambda c: c.refined_energy)
-    e_d, e_sp = d.refined_energy, sp.refined_energy
-    if not max(e_d, e_sp) <= options.descriptor_ratio * min(e_d, e_sp):
-        return chosen, None
+def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
+                       timings: dict) -> None:
+    """Fill ``distortion`` of every refined candidate that lacks it: :func:`geodesic_distortion`
+    on the first ``distortion_samples`` screening samples of mesh 1 (large meshes: refinement
+    samples, with which the maps are aligned)."""
+    todo = [c for c in candidates if c.distortion is None]
+    if not todo:
+        return
     t = time.perf_counter()
     n = options.distortion_samples
     rows = ctx.s1[:n] if ctx.large else ctx.c1[:n]
-    at = slice(0, len(rows)) if ctx.large else rows  # large: maps are aligned with s1
-    d.distortion, sp.distortion = geodesic_distortion(ctx.m1, ctx.m2, rows, d.refined_map[at],
-                                                      sp.refined_map[at])
-    timings["distortion"] = time.perf_counter() - t
-    chosen = d if d.distortion <= sp.distortion else sp
-    return chosen, {"descriptors": d.distortion, "spectral": sp.distortion}
+    at = slice(0, len(rows)) if ctx.large else rows
+    for c, d in zip(todo, geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.refined_map[at] for c in todo]),
+                    strict=True):
+        c.distortion = d
+    timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 
 
-def full_resolution(ctx: PairContext, chosen: Candidate, timings: dict) -> np.ndarray:
+def decision_score(c: Candidate) -> float:
+    """The one objective every refined candidate is ranked by: geodesic distortion × functional
+    map energy (lower is better).
+
+    Both factors are unit-free and 0 for an isometry: the distortion compares normalised
+    geodesic distances on sample pairs (sees which parts go where), the energy is the
+    distance of the refined functional map from orthonormality (sees the whole spectrum,
+    e.g. a front↔back mirror that distortion alone can miss). A product weighs a relative
+    change of either the same (equal weights in log space), so there is no weight to set.
+    """
+    return c.distortion * c.refined_energy
+
+
+def decide(refined: list[Candidate], options: GeoshapeOptions) -> Candidate:
+    """Stage 5: the candidate of lowest :func:`decision_score` among those of the wanted
+    orientation (the sign of the orientation score, no threshold), or among all when none is.
+    A map must not win by being smooth and mirrored. O(len(refined)).
+    """
+    wanted = [c for c in refined if not c.unwanted] or refined
+    return min(wanted, key=decision_score)
+
+
+def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOptions,
+                    timings: dict) -> np.ndarray:
     """Stage 6: ``p2p_12 (n1,)`` — the chosen refined map's functional map (``lb_k`` × ``lb_k``)
-    read off at every vertex of both meshes: O(n1 n2 lb_k), or O(n1 c lb_k) with c = 64
-    spatial candidates above ``BRUTE_FORCE_MAX`` target vertices. In large-mesh mode each
-    vertex starts from its nearest sample's image.
+    read off at every vertex of both meshes, then ZoomOut at full resolution from ``lb_k`` to
+    ``final_k`` in steps of ``final_step`` (precision: more basis functions resolve finer
+    detail than the samples can). Each read-off is O(n1 n2 k), or O(n1 c k) with c = 64
+    spatial candidates around the current image above ``BRUTE_FORCE_MAX`` target vertices.
+    In large-mesh mode each vertex starts from its nearest sample's image.
     """
     from geoshape.correspondence.fmaps.zoomout import full_resolution_map, functional_map_from_p2p
 
@@ -560,6 +553,15 @@ def full_resolution(ctx: PairContext, chosen: Candidate, timings: dict) -> np.nd
         C = functional_map_from_p2p(b1, b2, coarse, lb_k, lb_k)
     p2p = full_resolution_map(b1, b2, C, coarse, ctx.m2.V)
     timings["full_resolution"] = time.perf_counter() - t
+    if ctx.final_k > lb_k:
+        t = time.perf_counter()
+        B1, B2 = ctx.m1.laplacian(ctx.final_k), ctx.m2.laplacian(ctx.final_k)
+        ks = list(range(lb_k + options.final_step, ctx.final_k + 1, options.final_step))
+        if not ks or ks[-1] != ctx.final_k:
+            ks.append(ctx.final_k)
+        for k in ks:
+            p2p = full_resolution_map(B1, B2, functional_map_from_p2p(B1, B2, p2p, k, k), p2p, ctx.m2.V)
+        timings["final_zoomout"] = time.perf_counter() - t
     return p2p
 
 
@@ -573,7 +575,8 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     """The ``geoshape`` method: every stage in turn (module docstring); a
     :class:`~geoshape.correspondence.mesh_matching.Correspondence` whose ``cost`` is the chosen
     map's refined energy and whose ``details`` hold ``large_mesh_mode``, ``symmetry_completed``,
-    ``distortion`` (when measured), ``source`` and the final map's ``orientation``.
+    ``source``, the chosen map's ``distortion`` and ``decision_score``, and the final map's
+    ``orientation``.
     """
     from geoshape.correspondence.mesh_matching import Correspondence
 
@@ -585,15 +588,16 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     descriptors = descriptor_candidate(ctx, options, timings)
     if descriptors is not None:
         refined.append(descriptors)
+    measure_distortion(ctx, refined, options, timings)
     completed = complete_symmetry(ctx, refined, options, timings)
     if completed is not None:
+        measure_distortion(ctx, [completed], options, timings)
         refined.append(completed)
-    chosen, distortion = decide(ctx, refined, options, timings)
-    details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed)}
-    if distortion is not None:
-        details["distortion"] = distortion
-    details["source"] = chosen.source
-    p2p = full_resolution(ctx, chosen, timings)
+    chosen = decide(refined, options)
+    details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed),
+               "source": chosen.source, "distortion": chosen.distortion,
+               "decision_score": decision_score(chosen)}
+    p2p = full_resolution(ctx, chosen, options, timings)
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,
                           alternatives(ranked, refined), timings, details)
