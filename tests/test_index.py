@@ -50,11 +50,19 @@ def _cli(*args):
 
 
 @pytest.mark.slow
-def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
+@pytest.mark.parametrize("descriptor", [["--descriptor", "shd"], []], ids=["shd", "default"])
+def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path, descriptor):
+    """Also with the default descriptors (the fused method's components, computed together
+    per file): whole files per batch, nothing lost or computed twice."""
+    from collections import Counter
+
+    from geoshape.retrieval.index import DEFAULT_INDEX_DESCRIPTORS
+
+    per = 1 if descriptor else len(DEFAULT_INDEX_DESCRIPTORS)  # rows per file
     paths = _write_meshes(tmp_path / "meshes", 20)
     db = tmp_path / "idx.db"
     cmd = [sys.executable, "-m", "geoshape", "index", "add", str(db), str(tmp_path / "meshes"),
-           "--descriptor", "shd", "--jobs", "1", "--batch-size", "2"]
+           *descriptor, "--jobs", "1", "--batch-size", "2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     seen = []
     deadline = time.time() + 120
@@ -63,7 +71,7 @@ def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
             if db.exists():
                 n = len(_rows(db))
                 seen.append(n)
-                if n >= 2:
+                if n >= 2 * per:
                     break
             if proc.poll() is not None:
                 break
@@ -72,20 +80,21 @@ def test_resume_after_kill_loses_and_duplicates_nothing(tmp_path):
         proc.send_signal(signal.SIGKILL)
         proc.wait()
     first = _rows(db)
-    assert 2 <= len(first) < 20, f"kill came too late or too early: {len(first)} rows"
-    # a concurrent reader only ever saw whole batches (2 files each)
-    assert all(n % 2 == 0 for n in seen), seen
-    r = _cli("index", "add", db, tmp_path / "meshes", "--descriptor", "shd", "--jobs", "1",
+    assert 2 * per <= len(first) < 20 * per, f"kill came too late or too early: {len(first)} rows"
+    # a concurrent reader only ever saw whole batches (2 files each, all their descriptors)
+    assert all(n % (2 * per) == 0 for n in seen), seen
+    r = _cli("index", "add", db, tmp_path / "meshes", *descriptor, "--jobs", "1",
              "--batch-size", "4", "--json")
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert summary["skipped_unchanged"] == len(first)
-    assert summary["added"] == 20 - len(first)
+    assert summary["added"] == 20 * per - len(first)
     rows = _rows(db)
-    names = sorted(p for p, _, _ in rows)
-    assert names == sorted(str(p.resolve()) for p in paths)  # every file, once
-    before = {p: t for p, _, t in first}
-    assert all(before[p] == t for p, _, t in rows if p in before)  # not recomputed
+    count = Counter(p for p, _, _ in rows)
+    assert sorted(count) == sorted(str(p.resolve()) for p in paths)  # every file
+    assert set(count.values()) == {per}  # each descriptor once
+    before = {(p, d): t for p, d, t in first}
+    assert all(before[(p, d)] == t for p, d, t in rows if (p, d) in before)  # not recomputed
 
 
 def test_bad_and_unsupported_files_are_reported_and_skipped(tmp_path):
@@ -147,10 +156,47 @@ def test_query_finds_itself_and_reranks(tmp_path):
         hits, _ = idx.query_mesh(V, F, "evd", top=3, rerank="ccd")
         assert hits[0].path == str(paths[2].resolve())
         assert all(h.first_distance is not None for h in hits)
-    r = _cli("index", "query", tmp_path / "i.db", paths[2], "--top", "2", "--json")
+    r = _cli("index", "query", tmp_path / "i.db", paths[2], "--descriptor", "evd", "--top", "2", "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert len(out["results"]) == 2 and out["results"][0]["rank"] == 1
+    # the default (fused) needs its components, which this index does not hold: named error
+    r = _cli("index", "query", tmp_path / "i.db", paths[2])
+    assert r.returncode == 2 and "fused" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.slow
+def test_default_index_stores_and_ranks_by_the_fused_method(tmp_path):
+    """``index add`` without descriptors stores the fused default's components; ``query``
+    without one ranks by their fusion (the all-pairs fused row, up to symmetrisation)."""
+    from geoshape.io.mesh_io import load_mesh
+    from geoshape.retrieval.fusion import FUSED_WEIGHTS
+    from geoshape.retrieval.index import DEFAULT_INDEX_DESCRIPTORS, DEFAULT_QUERY_METHOD
+    from geoshape.retrieval.meshes import retrieval3d_matrix
+
+    assert DEFAULT_QUERY_METHOD == "fused"
+    assert set(DEFAULT_INDEX_DESCRIPTORS) == {n for n, w in FUSED_WEIGHTS.items() if w > 0}
+    paths = _write_meshes(tmp_path / "m", 6)
+    db = tmp_path / "i.db"
+    r = _cli("index", "add", db, tmp_path / "m", "--jobs", "1", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["added"] == 6 * len(DEFAULT_INDEX_DESCRIPTORS)
+    with ShapeIndex(db) as idx:
+        assert {s["descriptor"] for s in idx.summary()} == set(DEFAULT_INDEX_DESCRIPTORS)
+        V, F = load_mesh(paths[2])
+        hits, _ = idx.query_mesh(V, F, top=6)
+        assert hits[0].path == str(paths[2].resolve()) and hits[0].distance < 1e-9
+        reranked, _ = idx.query_mesh(V, F, top=3, rerank="lcdp")
+        assert reranked[0].path == str(paths[2].resolve()) and len(reranked) == 3
+    # same neighbours, in the same order, as the query's row of the fused all-pairs matrix
+    order = [str(p.resolve()) for p in sorted(paths)]
+    D = retrieval3d_matrix(order, "fused", backend="serial", progress=False)["D"]
+    row = D[order.index(str(paths[2].resolve()))]
+    assert [h.path for h in hits][:2] == [order[i] for i in np.argsort(row, kind="stable")[:2]]
+    r = _cli("index", "query", db, paths[2], "--top", "2", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["descriptor"] == "fused" and out["results"][0]["path"] == str(paths[2].resolve())
 
 
 def test_query_over_10000_rows_ranks_by_distance(tmp_path):

@@ -62,19 +62,23 @@ def test_an_existing_index_survives_a_failed_add(tmp_path):
 
 
 @pytest.mark.slow
-def test_two_concurrent_adds_on_a_fresh_database_compute_each_row_once(tmp_path):
+@pytest.mark.parametrize("descriptor", [["--descriptor", "shd"], []], ids=["shd", "default"])
+def test_two_concurrent_adds_on_a_fresh_database_compute_each_row_once(tmp_path, descriptor):
+    from geoshape.retrieval.index import DEFAULT_INDEX_DESCRIPTORS
+
+    per = 1 if descriptor else len(DEFAULT_INDEX_DESCRIPTORS)  # rows per file
     _write_meshes(tmp_path / "m", 12)
     db = tmp_path / "fresh.db"
     cmd = [sys.executable, "-m", "geoshape", "index", "add", str(db), str(tmp_path / "m"),
-           "--descriptor", "shd", "--backend", "serial", "--batch-size", "2", "--json"]
+           *descriptor, "--backend", "serial", "--batch-size", "2", "--json"]
     procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for _ in range(2)]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1] for o in outs]
     added = [json.loads(o[0])["added"] for o in outs]
     rows = _rows(db)
-    assert len(rows) == 12 and len({r[0] for r in rows}) == 12
-    assert sum(added) == 12, added  # nothing computed twice
+    assert len(rows) == 12 * per and len({r[0] for r in rows}) == 12
+    assert sum(added) == 12 * per, added  # nothing computed twice
 
 
 def test_deleted_files_are_never_returned_and_prune_removes_them(tmp_path):

@@ -65,6 +65,52 @@ def test_rigid_and_scale_invariance(name, figures):
     assert d_self <= INVARIANCE_RATIO.get(name, 0.05) * d_other, (name, d_self, d_other)
 
 
+def _ellipsoid(axes, subdivisions=3):
+    V, F = icosphere(subdivisions)
+    return V * np.asarray(axes, dtype=float), F
+
+
+def test_shared_eigensolve_gives_the_separate_descriptors(figures):
+    """compute_descriptor_set: evd_heat, shapedna and wks read one eigen-solve; same numbers."""
+    from geoshape.retrieval.descriptors import compute_descriptor_set
+
+    V, F = figures["biped"][0]
+    names = ("evd_heat", "shapedna", "lfd", "wks")
+    got, sec = compute_descriptor_set(V, F, names)
+    assert set(got) == set(sec) == set(names) and all(t >= 0 for t in sec.values())
+    for n in names:
+        np.testing.assert_allclose(got[n], compute_descriptor(V, F, n), rtol=1e-7, atol=1e-12, err_msg=n)
+
+
+def test_fused_rigid_and_scale_invariance(figures):
+    """The fused default: a rotated, translated, uniformly scaled copy is (nearly) at
+    distance 0, far nearer than the other class, and ranks first."""
+    from geoshape.retrieval.meshes import retrieval3d_matrix
+
+    (V, F), (V1, F1) = figures["biped"]
+    (W, G), (W1, G1) = figures["quadruped"]
+    moved = 2.5 * V @ _rotation(7).T + np.array([3.0, -1.0, 0.5])
+    meshes = [(V, F), (moved, F), (V1, F1), (W, G), (W1, G1)]
+    D = retrieval3d_matrix(meshes, "fused", backend="serial", progress=False)["D"]
+    assert D[0, 1] <= 0.2 * min(D[0, 3], D[0, 4]), D
+    assert np.argsort(D[0])[1] == 1 and np.argsort(D[1])[1] == 0
+
+
+def test_fused_separates_rigid_and_articulated_classes(figures):
+    """A tiny planted collection: one rigid class (an ellipsoid moved and scaled), two
+    articulated classes (two poses each): every item's nearest neighbours are its class."""
+    from geoshape.metrics.retrieval import retrieval_metrics
+    from geoshape.retrieval.meshes import retrieval3d_matrix
+
+    E, EF = _ellipsoid((1.0, 0.6, 0.35))
+    meshes = [(E, EF), (0.5 * E @ _rotation(2).T + 1.0, EF), (3.0 * E @ _rotation(5).T, EF),
+              *figures["biped"], *figures["quadruped"]]
+    labels = ["rigid"] * 3 + ["biped"] * 2 + ["quadruped"] * 2
+    D = retrieval3d_matrix(meshes, "fused", backend="serial", progress=False)["D"]
+    m = retrieval_metrics(D, labels)
+    assert m["nearest_neighbor"] == 1.0 and m["first_tier"] == 1.0, m
+
+
 def test_ccd_invariance_and_discrimination(figures):
     V, F = figures["biped"][0]
     a = compute_descriptor(V, F, "ccd")
@@ -227,6 +273,24 @@ def test_cli_contract(small_collection, tmp_path):
     assert meta["NN"] == 1.0
     assert meta["files"] == ["biped0.off", "biped1.off", "quadruped0.off", "quadruped1.off"]
     assert pr.stat().st_size > 0 and mat.stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_cli_default_is_the_fused_method(small_collection, tmp_path):
+    """Without --descriptor, retrieval3d runs the fused default: the matrix of --descriptor fused."""
+    from geoshape.retrieval.descriptors import DEFAULT_RETRIEVAL_METHOD
+
+    assert DEFAULT_RETRIEVAL_METHOD == "fused"
+    default, fused, js = tmp_path / "default.npy", tmp_path / "fused.npy", tmp_path / "m.json"
+    r = _cli("retrieval3d", small_collection, "--matrix", default, "--json", js, "--jobs", "1")
+    assert r.returncode == 0, r.stderr
+    r = _cli("retrieval3d", small_collection, "--descriptor", "fused", "--matrix", fused, "--jobs", "1")
+    assert r.returncode == 0, r.stderr
+    np.testing.assert_array_equal(np.load(default), np.load(fused))
+    meta = json.loads(js.read_text())
+    assert meta["descriptor"] == "fused" and meta["NN"] == 1.0
+    r = _cli("retrieval3d", "--help")
+    assert "default fused" in " ".join(r.stdout.split())
 
 
 @pytest.mark.slow

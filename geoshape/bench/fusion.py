@@ -9,7 +9,11 @@ query-adaptive fusion with :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS`, the
 leave-one-collection-out fusion (weights chosen by grid search on the other collections,
 scored on this one) and the sensitivity of the library setting (each weight ×0.5 / ×2,
 renormalised; k halved / doubled) — NN, FT, ST, mAP, each without and with LCDP
-re-ranking. Writes section ``fusion`` of docs/RESULTS.md.
+re-ranking. The library row is the library's own ``fused`` method run on the collection
+(``retrieval3d_on_folder(DIR, "fused")``: components computed together, one shared
+eigen-solve per mesh; cached as ``fused.npz`` with its weights): its s / mesh is measured,
+and its matrix is checked against the fusion of the cached component matrices. Writes
+section ``fusion`` of docs/RESULTS.md.
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ HELP = "3D late fusion: single descriptors vs fixed / query-adaptive fusion, LOC
 
 DEFAULT_SETS = "tosca_r5k,generated,mixed3d"
 DEFAULT_COMPONENTS = "evd_heat,shapedna,lfd,shd,wks"
+#: the row of the library's ``fused`` method
+LIBRARY_ROW = "fusion, adaptive (library)"
 
 
 def add_arguments(parser) -> None:
@@ -35,6 +41,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--gen-poses", type=int, default=4, help="poses per generated instance")
     parser.add_argument("--gen-instances", type=int, default=2, help="instances per generated class")
+    parser.add_argument("--timing-meshes", type=int, default=8, metavar="N",
+                        help="tosca_r5k meshes (5000 vertices) timed one at a time on one core for the "
+                        "library default's cost (default 8; 0: skip)")
     parser.add_argument("--no-write", action="store_true", help="print only")
 
 
@@ -89,6 +98,69 @@ def _component(set_name, comp, tmp, args, folders):
     return D, labels, spm
 
 
+def _library(set_name, tmp, args, folders):
+    """``(D, labels, seconds per mesh)`` of the library's ``fused`` method (the default of
+    ``geoshape retrieval3d``), from the cache when its weights are the current ones."""
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from geoshape.retrieval.fusion import FUSED_WEIGHTS
+
+    path = Path(args.cache) / _cache_tag(set_name, args) / "fused.npz" if args.cache else None
+    wkey = json.dumps(FUSED_WEIGHTS, sort_keys=True)
+    if path is not None and path.is_file():
+        z = np.load(path)
+        if str(z["weights"]) == wkey:
+            return z["D"], [str(x) for x in z["labels"]], float(z["spm"])
+    from geoshape.retrieval.meshes import retrieval3d_on_folder
+
+    if set_name not in folders:
+        folders[set_name] = _folder(set_name, tmp, args)
+    print(f"[{set_name}] fused (library) …", flush=True)
+    res = retrieval3d_on_folder(folders[set_name], "fused", n_jobs=args.n_jobs, progress=False)
+    D, labels = res["D"], list(res["labels"])
+    spm = float(sum(res["seconds_per_mesh"].values()))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, D=D, labels=np.array(labels), spm=spm, weights=wkey)
+    return D, labels, spm
+
+
+def _one_core_cost(n: int) -> dict:
+    """The fused default's descriptor cost per tosca_r5k mesh on one core: components computed
+    together (one shared eigen-solve) and, for comparison, each computed alone; CPU time of
+    this process (single-thread BLAS, so it is one core's work whatever else runs) and wall."""
+    import time
+
+    from geoshape.io.datasets import dataset_dir, read_labels
+    from geoshape.io.mesh_io import load_mesh
+    from geoshape.parallel import single_thread_blas
+    from geoshape.retrieval.descriptors import compute_descriptor, compute_descriptor_set, method_descriptors
+
+    items = read_labels(dataset_dir("tosca_r5k"))
+    items = items[:: max(1, len(items) // n)][:n]
+    names = method_descriptors("fused")
+    tot = {"shared": [0.0, 0.0], "separate": [0.0, 0.0]}
+    nv = set()
+    for it in items:
+        V, F = load_mesh(it.path)
+        nv.add(len(V))
+        with single_thread_blas():
+            for how in ("shared", "separate"):
+                t, c = time.perf_counter(), time.process_time()
+                if how == "shared":
+                    compute_descriptor_set(V, F, names)
+                else:
+                    for nm in names:
+                        compute_descriptor(V, F, nm)
+                tot[how][0] += time.process_time() - c
+                tot[how][1] += time.perf_counter() - t
+    return {"n": len(items), "vertices": sorted(nv),
+            **{how: (cpu / len(items), wall / len(items)) for how, (cpu, wall) in tot.items()}}
+
+
 def _grid(components, step):
     import itertools
 
@@ -125,7 +197,7 @@ def run(args) -> int:
         raise InvalidOptionError(f"--components must include the fused ones; missing {', '.join(missing)}")
     grid = _grid(comps, args.grid_step)
     t_start = time.perf_counter()
-    mats, labels, spm = {}, {}, {}
+    mats, labels, spm, lib, lib_spm = {}, {}, {}, {}, {}
     with tempfile.TemporaryDirectory() as tmpd:
         folders = {}
         for s in sets:
@@ -136,6 +208,11 @@ def run(args) -> int:
                     raise InvalidOptionError(f"{s}: the cached {c} matrix has other labels than the others")
                 labels[s] = lab
                 mats[s][c], spm[s][c] = D, sec
+            D, lab, lib_spm[s] = _library(s, Path(tmpd), args, folders)
+            if lab != labels[s]:
+                raise InvalidOptionError(f"{s}: the library's fused matrix has other labels than the "
+                                         "components")
+            lib[s] = D
 
     def fuse(s, w, k=FUSED_K, adaptive=True):
         used = {c: v for c, v in w.items() if v > 0}
@@ -148,6 +225,14 @@ def run(args) -> int:
     def cv_score(D, s):
         m = retrieval_metrics(D, labels[s])
         return m["first_tier"] + 0.5 * m["nearest_neighbor"]
+
+    # the library's own matrix = the fusion of the component matrices (up to the eigen-solver
+    # tolerance: its spectral components share one eigen-solve per mesh)
+    lib_diff = {s: float(np.max(np.abs(lib[s] - fuse(s, FUSED_WEIGHTS)))) for s in sets}
+
+    cost = _one_core_cost(args.timing_meshes) if args.timing_meshes > 0 and "tosca_r5k" in sets else None
+    if cost is not None:
+        print(f"one core, per tosca_r5k mesh: {cost}", flush=True)
 
     # weight grid (adaptive fusion, k = FUSED_K): FT + NN/2 on every collection
     t0 = time.perf_counter()
@@ -165,7 +250,7 @@ def run(args) -> int:
     for c in comps:
         variants.append((c, {c: 1.0}, FUSED_K, False))
     variants.append(("fusion, fixed weights", base_w, FUSED_K, False))
-    variants.append(("fusion, adaptive (library)", base_w, FUSED_K, True))
+    variants.append((LIBRARY_ROW, base_w, FUSED_K, True))
     variants.append(("LOCO adaptive", None, FUSED_K, True))
     for c, v in FUSED_WEIGHTS.items():
         if v <= 0:
@@ -187,8 +272,10 @@ def run(args) -> int:
             w = loco[s] if w is None else w
             # a single component is scored on its own matrix (not row-normalised)
             D = mats[s][next(iter(w))] if len(w) == 1 else fuse(s, w, kk, adaptive)
+            if label == LIBRARY_ROW:
+                D = lib[s]  # the library's fused method itself
             a, b = metrics(D, s), metrics(rerank(D, "lcdp"), s)
-            sec = sum(spm[s][c] for c, v in w.items() if v > 0)
+            sec = lib_spm[s] if label == LIBRARY_ROW else sum(spm[s][c] for c, v in w.items() if v > 0)
             wt = "—" if len(w) == 1 else _wtext(w) + ("" if kk == FUSED_K else f"; k = {kk}")
             rows.append([label, wt, *[f"{x:.3f}" for x in a], *[f"{x:.3f}" for x in b], f"{sec:.2f}"])
             summary[(s, label)] = a
@@ -213,14 +300,27 @@ def run(args) -> int:
         "each matrix divided per query by its median, weighted per query by w_c × gap_c(q) "
         f"(gap = 1 − mean of the {FUSED_K} nearest normalised distances; 'fixed': w_c only), "
         "summed and symmetrised. Library weights `FUSED_WEIGHTS` = "
-        f"{_wtext(FUSED_WEIGHTS)} (`--descriptor fused`). LOCO: adaptive weights chosen on the "
+        f"{_wtext(FUSED_WEIGHTS)} (`--descriptor fused`, the default of `geoshape retrieval3d` and "
+        "of the index); its row is the library's `fused` method run on each collection (components "
+        "computed together per mesh, one shared Laplace–Beltrami eigen-solve; max |difference| from "
+        "fusing the component matrices: "
+        + ", ".join(f"{s} {lib_diff[s]:.1e}" for s in sets)
+        + "). LOCO: adaptive weights chosen on the "
         f"other collections by grid search ({len(grid)} weight vectors, step {args.grid_step:g}, "
         "score mean FT + NN/2), scored on this one; LOCO weights per held-out set: "
         + "; ".join(f"{s}: {_wtext(loco[s])}" for s in sets)
         + f". Grid best on all collections: {_wtext(best_all)}. Sensitivity: each library weight "
         "×0.5 / ×2 then renormalised, k halved (floor) / doubled. '+lcdp': "
         "`geoshape.retrieval.rerank.rerank(D, \"lcdp\")` with its defaults. 's / mesh': descriptor "
-        f"time per mesh, summed over the components. Grid search {t_grid:.1f} s, total "
+        "wall time per mesh on the parallel runner when the matrix was computed (2 workers on a "
+        "shared machine, so noisy), summed over the components computed separately (library row: "
+        "measured, shared eigen-solve). "
+        + (f"Cost of the library default on one core (`compute_descriptor_set`, single-thread BLAS, "
+           f"{cost['n']} tosca_r5k meshes of {'/'.join(map(str, cost['vertices']))} vertices, one at a "
+           f"time): {cost['shared'][0]:.2f} s CPU per mesh ({cost['shared'][1]:.2f} s wall on this "
+           f"shared machine); the same components each with its own eigen-solve: "
+           f"{cost['separate'][0]:.2f} s CPU ({cost['separate'][1]:.2f} s wall). " if cost else "")
+        + f"Grid search {t_grid:.1f} s, total "
         f"{time.perf_counter() - t_start:.1f} s (matrices {'cached' if args.cache else 'computed'}).\n\n"
         + "\n\n".join(tables)
     )

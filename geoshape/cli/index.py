@@ -4,8 +4,10 @@
 batch in one SQLite transaction; unchanged files (same path, content hash, descriptor and
 parameters) are skipped, so an interrupted run resumes where it stopped. A file that cannot
 be read or described is named on stderr and skipped; the exit code is then 1.
-``query`` ranks the stored shapes against a mesh (optionally re-ranking by CCD, or by
-diffusion over the stored k-nearest-neighbour graph: ``--rerank lcdp``). Vector descriptors
+``query`` ranks the stored shapes against a mesh — by default by the fused descriptor
+(``fused``: the stored evd_heat, shapedna, lfd and wks, late-fused as ``geoshape
+retrieval3d`` does; ``add`` stores those by default) — optionally re-ranking by CCD, or by
+diffusion over the stored k-nearest-neighbour graph (``--rerank lcdp``). Vector descriptors
 are searched through a memory-mapped sidecar (``DB.ann/``): exactly by brute force, or
 through an IVF above 8 million stored values (``--search``).
 """
@@ -17,6 +19,11 @@ from geoshape.io.outputs import declare_outputs
 
 
 def register(subparsers) -> None:
+    from geoshape.cli.retrieval3d import FUSED_SCORES
+    from geoshape.retrieval.fusion import FUSED_WEIGHTS
+    from geoshape.retrieval.index import DEFAULT_INDEX_DESCRIPTORS, DEFAULT_QUERY_METHOD
+
+    weights = ", ".join(f"{n} {w:g}" for n, w in FUSED_WEIGHTS.items() if w > 0)
     p = subparsers.add_parser(
         "index",
         help="persistent index of shape descriptors (SQLite): add meshes, query a mesh",
@@ -34,7 +41,9 @@ def register(subparsers) -> None:
     a.add_argument("db", metavar="DB", help="index file (SQLite)")
     a.add_argument("inputs", metavar="MESH_OR_DIR", nargs="+", help="mesh files or folders")
     a.add_argument("--descriptor", action="extend", nargs="+", metavar="NAME", default=None,
-                   help="descriptors to store (repeatable; default: evd ccd)")
+                   help="descriptors to store (repeatable; 'fused' stands for its components; default: "
+                   f"{' '.join(DEFAULT_INDEX_DESCRIPTORS)}, the components of the fused default that "
+                   "'query' ranks by)")
     a.add_argument("--affinity", default=None, metavar="KIND",
                    help="geodesic (default), euclidean or combined, for spectral descriptors")
     a.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -54,7 +63,10 @@ def register(subparsers) -> None:
     q.add_argument("db", metavar="DB")
     q.add_argument("mesh", metavar="MESH")
     q.add_argument("--top", type=POSITIVE_INT, default=10, help="number of results (default 10)")
-    q.add_argument("--descriptor", default="evd", metavar="NAME", help="ranking descriptor (default evd)")
+    q.add_argument("--descriptor", default=DEFAULT_QUERY_METHOD, metavar="NAME",
+                   help=f"ranking descriptor, or 'fused' (default {DEFAULT_QUERY_METHOD}: the late fusion "
+                   f"of the stored {', '.join(DEFAULT_INDEX_DESCRIPTORS)} with the cross-validated "
+                   f"weights {weights}, as 'geoshape retrieval3d' by default). " + FUSED_SCORES)
     q.add_argument("--rerank", default=None, metavar="NAME",
                    help="re-rank the shortlist by a second stored descriptor (ccd), or by a diffusion "
                    "method (lcdp) over the stored k-nearest-neighbour graph (built on first use, then "
@@ -110,10 +122,12 @@ def run_add(args) -> int:
     from geoshape._options import check_choice
     from geoshape.cli._common import print_json
     from geoshape.parallel import BACKENDS
-    from geoshape.retrieval.descriptors import get_descriptor
+    from geoshape.retrieval.descriptors import FUSIONS, get_descriptor, method_descriptors
     from geoshape.retrieval.index import DEFAULT_INDEX_DESCRIPTORS
 
     names = args.descriptor or list(DEFAULT_INDEX_DESCRIPTORS)
+    names = list(dict.fromkeys(x for nm in names
+                               for x in (method_descriptors(nm) if nm in FUSIONS else (nm,))))
     for nm in names:
         get_descriptor(nm)
     if args.backend is not None:
@@ -151,10 +165,9 @@ def run_query(args) -> int:
     from geoshape._options import check_choice
     from geoshape.cli._common import print_json
     from geoshape.io.mesh_io import load_mesh
-    from geoshape.retrieval.descriptors import get_descriptor
-    from geoshape.retrieval.index import SEARCH_MODES, check_rerank
+    from geoshape.retrieval.index import SEARCH_MODES, check_query_method, check_rerank
 
-    get_descriptor(args.descriptor)
+    check_query_method(args.descriptor)
     if args.rerank:
         check_rerank(args.rerank)
     check_choice("search", args.search, SEARCH_MODES)

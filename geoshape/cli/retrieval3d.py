@@ -1,8 +1,10 @@
-"""``geoshape retrieval3d DIR --descriptor NAME --matrix OUT.npy``: all-pairs 3D retrieval.
+"""``geoshape retrieval3d DIR [--descriptor NAME] --matrix OUT.npy``: all-pairs 3D retrieval.
 
 Contract (used by external evaluation; keep it stable): DIR holds meshes and
-``labels.csv`` (``file,label``); the N x N dissimilarity matrix is written in labels.csv row
-order; ``--json`` holds NN, FT, ST, E, DCG, mAP and seconds. Every output is written
+``labels.csv`` (``file,label``); without ``--descriptor`` the fused default
+(:data:`geoshape.retrieval.descriptors.DEFAULT_RETRIEVAL_METHOD`, ``fused``) is used; the
+N x N dissimilarity matrix is written in labels.csv row order; ``--json`` holds NN, FT, ST,
+E, DCG, mAP and seconds. Every output is written
 atomically after everything is computed; a mesh that cannot be read or described stops the
 command with its name (exit 2) and nothing is written.
 """
@@ -12,10 +14,17 @@ from __future__ import annotations
 from geoshape.cli._common import POSITIVE_INT, SEED, WORKERS
 from geoshape.io.outputs import declare_outputs
 
+#: the default's measured scores, quoted from docs/RESULTS.md (section "3D late fusion", row
+#: "fusion, adaptive (library)", written by ``geoshape bench fusion``)
+FUSED_SCORES = ("Measured (docs/RESULTS.md, section fusion): tosca_r5k NN 1.000 / FT 0.937, mixed3d "
+                "NN 0.971 / FT 0.780; about 1.0 s CPU per 5000-vertex mesh on one core.")
+
 
 def register(subparsers) -> None:
-    from geoshape.retrieval.descriptors import MESH_DESCRIPTORS, RETRIEVAL_METHODS
+    from geoshape.retrieval.descriptors import DEFAULT_RETRIEVAL_METHOD, MESH_DESCRIPTORS, RETRIEVAL_METHODS
+    from geoshape.retrieval.fusion import FUSED_WEIGHTS
 
+    weights = ", ".join(f"{n} {w:g}" for n, w in FUSED_WEIGHTS.items() if w > 0)
     listing = "; ".join(f"{n}: {s.summary}" for n, s in MESH_DESCRIPTORS.items())
     p = subparsers.add_parser(
         "retrieval3d",
@@ -24,12 +33,15 @@ def register(subparsers) -> None:
         "descriptor per mesh (in parallel), the N x N dissimilarity matrix in labels.csv "
         "row order (--matrix), and NN, FT, ST, E, DCG, mAP and timings (--json). "
         f"Descriptors — {listing}; evd_ccd: EVD, then each query's top K re-ranked by CCD; "
-        "fused: evd_heat, shapedna and lfd matrices fused query-adaptively (cross-validated "
-        "weights, geoshape.retrieval.fusion).",
+        f"fused (the default): the {', '.join(n for n, w in FUSED_WEIGHTS.items() if w > 0)} "
+        f"matrices fused query-adaptively, weights {weights} (cross-validated over three "
+        "collections by 'geoshape bench fusion'; the spectral components share one "
+        "Laplace-Beltrami eigen-solve per mesh). " + FUSED_SCORES,
     )
     p.add_argument("folder", metavar="DIR", help="folder with meshes and labels.csv")
-    p.add_argument("--descriptor", required=True, metavar="NAME",
-                   help=f"one of {', '.join(RETRIEVAL_METHODS)}")
+    p.add_argument("--descriptor", default=None, metavar="NAME",
+                   help=f"one of {', '.join(RETRIEVAL_METHODS)} (default {DEFAULT_RETRIEVAL_METHOD}: "
+                   "the cross-validated late fusion, see above)")
     p.add_argument("--affinity", default=None, metavar="KIND",
                    help="geodesic (default), euclidean or combined: distances of the spectral "
                    "embedding (evd, ccd, evd_ccd, *_emb only)")
@@ -60,6 +72,7 @@ def run(args) -> int:
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
     from geoshape.parallel import BACKENDS
     from geoshape.retrieval.descriptors import (
+        DEFAULT_RETRIEVAL_METHOD,
         RERANKERS,
         RETRIEVAL_METHODS,
         descriptor_params,
@@ -67,6 +80,8 @@ def run(args) -> int:
     )
     from geoshape.retrieval.meshes import DEFAULT_RERANK_K, retrieval3d_on_folder
 
+    if args.descriptor is None:
+        args.descriptor = DEFAULT_RETRIEVAL_METHOD
     check_choice("descriptor", args.descriptor, RETRIEVAL_METHODS)
     for nm in method_descriptors(args.descriptor):
         descriptor_params(nm, args.affinity, args.seed)

@@ -7,7 +7,8 @@ separates the query's closest few items from the rest (its *gap*), and averages.
 
 :data:`FUSED_WEIGHTS` are the weights chosen by cross-validation over three 3D collections
 (``tosca_r5k``, the generated articulated set, ``mixed3d``; ``geoshape bench fusion``); they
-define the retrieval method ``fused`` (``geoshape retrieval3d DIR --descriptor fused``).
+define the retrieval method ``fused``, the default of ``geoshape retrieval3d DIR`` (no
+``--descriptor``) and of the index.
 
 >>> import numpy as np
 >>> x = np.r_[0.0, 0.1, 0.2, 5.0, 5.1, 5.2]
@@ -27,12 +28,14 @@ from geoshape.errors import InvalidOptionError
 
 __all__ = ["FUSED_WEIGHTS", "FUSED_K", "GAP_FLOOR", "fuse_distances", "check_weights"]
 
-#: Component weights of the ``fused`` retrieval method: the best adaptive fusion on the 1/8
-#: grid, scored by FT + NN/2 averaged over tosca_r5k, the generated articulated set and
-#: mixed3d (tosca NN 1.0 FT 0.933, mixed3d NN 0.946 FT 0.748, generated 1.0/1.0; the best
-#: single descriptors: tosca evd_heat 1.0/0.959, mixed3d lfd 0.942/0.774). ``shd`` was on the
-#: grid and got weight 0, so it is not computed.
-FUSED_WEIGHTS: dict[str, float] = {"evd_heat": 0.25, "shapedna": 0.375, "lfd": 0.375}
+#: Component weights of the ``fused`` retrieval method: the "grid best on all collections" of
+#: ``geoshape bench fusion`` (pool evd_heat, shapedna, lfd, shd, wks on the 1/8 grid, adaptive
+#: fusion scored by FT + NN/2 averaged over tosca_r5k, the generated articulated set and
+#: mixed3d). ``shd`` got weight 0, so it is not computed. Scores (docs/RESULTS.md, section
+#: "3D late fusion", row "fusion, adaptive (library)"): tosca_r5k NN 1.000 FT 0.937, mixed3d
+#: NN 0.971 FT 0.780, generated 1.000 / 1.000; the best single descriptors there: tosca_r5k
+#: evd_heat 1.000 / 0.959, mixed3d lfd 0.942 / 0.774.
+FUSED_WEIGHTS: dict[str, float] = {"evd_heat": 0.25, "shapedna": 0.125, "lfd": 0.25, "wks": 0.375}
 
 #: Nearest items per query whose mean distance defines the gap (a query's closest few).
 FUSED_K = 3

@@ -74,18 +74,23 @@ import numpy as np
 
 from geoshape.errors import DatasetError, InvalidOptionError
 from geoshape.io.interop import mesh_input
+from geoshape.retrieval.fusion import FUSED_WEIGHTS
 
 __all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs",
-           "DEFAULT_INDEX_DESCRIPTORS", "SCHEMA_VERSION", "SEARCH_MODES", "IVF_MIN_VALUES",
-           "rerank_choices", "check_rerank"]
+           "DEFAULT_INDEX_DESCRIPTORS", "DEFAULT_QUERY_METHOD", "SCHEMA_VERSION", "SEARCH_MODES",
+           "IVF_MIN_VALUES", "rerank_choices", "check_rerank", "query_methods", "check_query_method"]
 
 SCHEMA_VERSION = 2  # 2: sets, changes and the triggers that log every change of entries
 #: ``PRAGMA application_id`` of a geoshape index (the bytes "GSHP")
 APPLICATION_ID = 0x47534850
 #: Seconds after which a claim of a process on another host is considered abandoned.
 CLAIM_LIFETIME = 3600.0
-#: descriptors stored by ``index add`` when none is named: EVD to rank, CCD to re-rank
-DEFAULT_INDEX_DESCRIPTORS = ("evd", "ccd")
+#: descriptors stored by ``index add`` when none is named: the components of the fused
+#: default (:data:`geoshape.retrieval.descriptors.DEFAULT_RETRIEVAL_METHOD`), which ``query``
+#: ranks by when no descriptor is named
+DEFAULT_INDEX_DESCRIPTORS = tuple(n for n, w in FUSED_WEIGHTS.items() if w > 0)
+#: what ``query`` ranks by when no descriptor is named
+DEFAULT_QUERY_METHOD = "fused"
 #: how queries search: ``auto`` (exact brute force over the sidecar, IVF above
 #: :data:`IVF_MIN_VALUES`), ``brute`` (always exact), ``ivf`` (always the IVF), ``memory``
 #: (no sidecar: every stored descriptor loaded from SQLite, O(N) distances)
@@ -252,6 +257,8 @@ class ShapeIndex:
     >>> idx.add(["meshes/"], descriptors=["evd"])  # doctest: +SKIP
     >>> idx.add([trimesh_mesh, (V, F)], names=["bunny", "cat"])  # doctest: +SKIP
     >>> idx.query_mesh(V, F, "evd", top=10)  # doctest: +SKIP
+    >>> idx.add(["meshes/"])  # doctest: +SKIP
+    >>> idx.query_mesh(V, F, top=10)  # doctest: +SKIP
     """
 
     def __init__(self, path: str | os.PathLike, *, timeout: float = 60.0, search: str = "auto",
@@ -454,21 +461,28 @@ class ShapeIndex:
 
     def _describe(self, tasks, pkeys, affinity, seed, backend, n_jobs, client):
         """Rows for ``(file, sha, descriptor)`` tasks on the runner, and the files that failed;
-        a file that failed one descriptor is stored for none (all or nothing per file)."""
+        a file that failed one descriptor is stored for none (all or nothing per file).
+
+        One runner task per file: its descriptors are computed together, so the ones that
+        read Laplace–Beltrami eigenpairs share one eigen-solve
+        (:func:`geoshape.retrieval.descriptors.compute_descriptor_set`)."""
         from geoshape.parallel import run_map
-        from geoshape.retrieval.descriptors import get_descriptor
         from geoshape.retrieval.meshes import describe_file
 
-        items = [((f.name, f.V, f.F) if isinstance(f, _MemoryMesh) else str(f), nm,
-                  affinity if get_descriptor(nm).uses_affinity else None, seed) for f, _, nm in tasks]
+        per_file: dict[str, tuple] = {}  # path or name -> (file, sha, [descriptors])
+        for f, sha, nm in tasks:
+            per_file.setdefault(str(f), (f, sha, []))[2].append(nm)
+        groups = list(per_file.values())
+        items = [((f.name, f.V, f.F) if isinstance(f, _MemoryMesh) else str(f), tuple(names), affinity, seed)
+                 for f, _, names in groups]
         results = run_map(describe_file, items, backend=backend, n_jobs=n_jobs, scheduler=client,
                           progress=False, on_error="return")
         rows, bad = [], {}
-        for (f, sha, nm), res in zip(tasks, results, strict=True):
+        for (f, sha, names), res in zip(groups, results, strict=True):
             if isinstance(res, BaseException):
                 bad.setdefault(str(f), str(res) if str(f) in str(res) else f"{f}: {res}")
             else:
-                rows.append((f, nm, pkeys[nm], sha, res[0], res[1]))
+                rows.extend((f, nm, pkeys[nm], sha, res[0][nm], res[1][nm]) for nm in names)
         return [r for r in rows if str(r[0]) not in bad], bad
 
     def prune(self) -> list[str]:
@@ -499,7 +513,8 @@ class ShapeIndex:
             in memory: trimesh / Open3D / pymeshlab meshes (a ``MeshSet``: its current mesh)
             or ``(V, F)`` pairs, described exactly as the same mesh read from a file.
         descriptors : sequence of str
-            Registered descriptor names.
+            Registered descriptor names; a fusion (``"fused"``) stands for its components.
+            Default: the components of the fused default (:data:`DEFAULT_INDEX_DESCRIPTORS`).
         names : sequence of str or None, optional
             One entry per item of ``inputs``: the name a mesh in memory is stored and
             returned under (:attr:`Hit.path`); ``None`` for files and folders, whose key is
@@ -538,10 +553,19 @@ class ShapeIndex:
         sent to the runner.
         """
         from geoshape.parallel import _dask_client, _resolve_backend, default_n_jobs
-        from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
+        from geoshape.retrieval.descriptors import (
+            FUSIONS,
+            descriptor_params,
+            get_descriptor,
+            method_descriptors,
+            params_key,
+        )
 
         t0 = time.perf_counter()
-        wanted = list(dict.fromkeys(descriptors))
+        if isinstance(descriptors, str):
+            descriptors = [descriptors]
+        wanted = list(dict.fromkeys(x for nm in descriptors
+                                    for x in (method_descriptors(nm) if nm in FUSIONS else (nm,))))
         if not wanted:
             raise InvalidOptionError("no descriptor named")
         pkeys = {}
@@ -832,9 +856,13 @@ class ShapeIndex:
 
         Parameters
         ----------
-        q : ndarray
-            The query's descriptor ``descriptor``.
+        q : ndarray or dict
+            The query's descriptor ``descriptor``; for a fusion (``"fused"``), its component
+            descriptors by name.
         descriptor : str
+            A stored descriptor, or a fusion (:data:`geoshape.retrieval.descriptors.FUSIONS`):
+            its components' distances to every stored shape holding all of them, fused as one
+            query row (exact scan, no sidecar).
         top : int
             Number of hits returned.
         affinity, seed
@@ -872,6 +900,7 @@ class ShapeIndex:
         collection.
         """
         from geoshape.retrieval.descriptors import (
+            FUSIONS,
             descriptor_distances,
             descriptor_params,
             get_descriptor,
@@ -884,11 +913,17 @@ class ShapeIndex:
         if rerank is not None:
             check_rerank(rerank)
         diffusion = rerank in RERANK_METHODS
-        spec = get_descriptor(descriptor)
-        params = descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed)
-        vs = self._vectors(descriptor, params_key(params), graph=diffusion)
         want = max(top, rerank_k or 20) if rerank else top
-        if vs is None:
+        fused = descriptor in FUSIONS
+        vs = None
+        if not fused:
+            spec = get_descriptor(descriptor)
+            params = descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed)
+            vs = self._vectors(descriptor, params_key(params), graph=diffusion)
+        if fused:
+            short, rows = self._fused_shortlist(q, descriptor, want, affinity=affinity, seed=seed,
+                                                skip_missing=skip_missing)
+        elif vs is None:
             paths, X = self.load(descriptor, params)
             d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
             m = len(paths)
@@ -944,6 +979,63 @@ class ShapeIndex:
         order = np.lexsort((np.arange(len(keep)), rd))
         return [Hit(r + 1, keep[o][0], float(rd[o]), keep[o][1]) for r, o in enumerate(order[:top])]
 
+    def _fused_shortlist(self, q, method: str, want: int, *, affinity, seed: int, skip_missing: bool):
+        """The ``want`` nearest stored shapes under the fusion ``method``: ``(short, rows)``.
+
+        ``q``: the query's component descriptors by name. Each component's distances from
+        the query to every stored shape holding all components (O(M) distances each) are
+        fused as one query row (:func:`geoshape.retrieval.fusion.fuse_distances`, the
+        ``(1, M)`` case: medians and nearest items over the stored shapes, no symmetrisation),
+        so the ranking is that of the query's row of the all-pairs fused matrix up to the
+        symmetrisation. ``rows``: the shortlist's component descriptors (dicts by name)."""
+        from geoshape.retrieval.descriptors import (
+            FUSIONS,
+            descriptor_distances,
+            descriptor_params,
+            get_descriptor,
+        )
+        from geoshape.retrieval.fusion import fuse_distances
+
+        weights = {c: w for c, w in FUSIONS[method].items() if w > 0}
+        if not isinstance(q, Mapping) or any(c not in q for c in weights):
+            raise InvalidOptionError(f"a {method!r} query needs the descriptors {', '.join(weights)} "
+                                     "of the query, by name")
+        stored = {}
+        for c in weights:
+            spec = get_descriptor(c)
+            try:
+                paths, X = self.load(c, descriptor_params(c, affinity if spec.uses_affinity else None, seed))
+            except DatasetError as exc:
+                raise DatasetError(f"{exc}; ranking by {method!r} needs {', '.join(weights)} stored "
+                                   f"('geoshape index add' stores them by default)") from None
+            stored[c] = ({p: i for i, p in enumerate(paths)}, X, paths)
+        first = next(iter(weights))
+        common = [p for p in stored[first][2] if all(p in stored[c][0] for c in weights)]
+        if not common:
+            raise DatasetError(f"{self.path}: no stored shape has all of {', '.join(weights)}")
+        mats = {}
+        for c in weights:
+            where, X, _ = stored[c]
+            Xc = [X[where[p]] for p in common]
+            mats[c] = descriptor_distances(c, [q[c]], Xc if X.dtype == object else np.asarray(Xc))
+        d = fuse_distances(mats, weights, all_pairs=False)[0] if len(common) > 1 else np.zeros(1)
+        m = len(common)
+        k = min(m, want)
+        cand = _nearest_first(d, k)
+        if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
+            while True:
+                present = [i for i in cand if not _is_gone(common[i])]
+                if len(present) >= k or len(cand) == m:
+                    break
+                cand = _nearest_first(d, min(m, 2 * len(cand) + k))
+            if not present:
+                raise DatasetError(f"{self.path}: none of the stored files exists any more "
+                                   "(run 'geoshape index prune')")
+            cand = np.asarray(present[:k], dtype=np.int64)
+        short = [(common[i], float(d[i])) for i in cand]
+        rows = [{c: stored[c][1][stored[c][0][common[i]]] for c in weights} for i in cand]
+        return short, rows
+
     def _diffusion_rerank(self, q, descriptor: str, method: str, short, top: int, *, vs, pos, rows):
         """Re-score the shortlist ``short`` by ``method`` over a local collection: the query,
         the shortlist and (with a sidecar) its stored graph neighbours up to
@@ -971,6 +1063,14 @@ class ShapeIndex:
             Z = np.vstack([np.asarray(q, dtype=np.float64).reshape(1, -1),
                            np.asarray(vs.X[np.asarray(local, dtype=np.int64)])])
             D = pair_distances(vs.metric, Z[:, None, :], Z[None, :, :])
+        elif isinstance(q, Mapping):  # a fusion: its components' local matrices, fused
+            from geoshape.retrieval.descriptors import FUSIONS
+            from geoshape.retrieval.fusion import fuse_distances
+
+            weights = {c: w for c, w in FUSIONS[descriptor].items() if w > 0}
+            D = fuse_distances({c: descriptor_distances(c, [q[c], *(r[c] for r in rows)],
+                                                        [q[c], *(r[c] for r in rows)]) for c in weights},
+                               weights)
         else:
             Z = [q, *rows]
             D = descriptor_distances(descriptor, Z, Z)
@@ -981,12 +1081,14 @@ class ShapeIndex:
         return [Hit(r + 1, short[o][0], float(score[o]), float(first[o])) for r, o in enumerate(order[:top])]
 
     @mesh_input
-    def query_mesh(self, V, F, descriptor: str = "evd", *, top: int = 10,
+    def query_mesh(self, V, F, descriptor: str = DEFAULT_QUERY_METHOD, *, top: int = 10,
                    affinity: str | None = None, seed: int = 0, rerank: str | None = None,
                    rerank_k: int | None = None, skip_missing: bool = True) -> tuple[list[Hit], dict]:
         """Describe a mesh and rank the stored shapes against it.
 
         ``V, F`` may be replaced by one trimesh / Open3D / pymeshlab mesh (vertex order kept).
+        ``descriptor``: a stored descriptor or a fusion, by default ``"fused"`` (its
+        components computed together, one shared eigen-solve; see :meth:`query_descriptor`).
         ``rerank``: a second descriptor (``"ccd"``) or a diffusion method (``"lcdp"``), see
         :meth:`query_descriptor`.
 
@@ -997,16 +1099,27 @@ class ShapeIndex:
             ``seconds_descriptor`` (query descriptors) and ``seconds_search``.
         """
         from geoshape.parallel import single_thread_blas
-        from geoshape.retrieval.descriptors import compute_descriptor, get_descriptor
+        from geoshape.retrieval.descriptors import (
+            FUSIONS,
+            compute_descriptor,
+            compute_descriptor_set,
+            get_descriptor,
+            method_descriptors,
+        )
         from geoshape.retrieval.rerank import RERANK_METHODS
 
         t0 = time.perf_counter()
-        spec = get_descriptor(descriptor)
+        check_query_method(descriptor)
         if rerank is not None:
             check_rerank(rerank)
         with single_thread_blas():  # small dense eigenproblems: threads only spin
-            q = compute_descriptor(V, F, descriptor, seed=seed,
-                                   affinity=affinity if spec.uses_affinity else None)
+            if descriptor in FUSIONS:  # its components, sharing one eigen-solve
+                q = compute_descriptor_set(V, F, method_descriptors(descriptor), affinity=affinity,
+                                           seed=seed)[0]
+            else:
+                spec = get_descriptor(descriptor)
+                q = compute_descriptor(V, F, descriptor, seed=seed,
+                                       affinity=affinity if spec.uses_affinity else None)
             rq = None
             if rerank and rerank not in RERANK_METHODS:
                 rspec = get_descriptor(rerank)
@@ -1018,6 +1131,21 @@ class ShapeIndex:
                                      skip_missing=skip_missing)
         t2 = time.perf_counter()
         return hits, {"seconds_descriptor": t1 - t0, "seconds_search": t2 - t1}
+
+
+def query_methods() -> tuple[str, ...]:
+    """What ``query_mesh`` / ``index query --descriptor`` ranks by: a stored descriptor, or a
+    fusion of stored descriptors (:data:`geoshape.retrieval.descriptors.FUSIONS`)."""
+    from geoshape.retrieval.descriptors import FUSIONS, MESH_DESCRIPTORS
+
+    return (*MESH_DESCRIPTORS, *FUSIONS)
+
+
+def check_query_method(name: str) -> str:
+    """``name`` if :func:`query_methods` has it, else :class:`InvalidOptionError` listing them."""
+    from geoshape._options import check_choice
+
+    return check_choice("descriptor", name, query_methods())
 
 
 def rerank_choices() -> tuple[str, ...]:

@@ -33,12 +33,15 @@ def describe_file(item) -> tuple[np.ndarray, float]:
     ----------
     item : tuple
         ``(path, name, affinity, seed)``; ``path`` may also be ``(label, V, F)``, a mesh
-        already in memory (nothing is read; errors start with ``label``).
+        already in memory (nothing is read; errors start with ``label``). ``name`` may be a
+        tuple of descriptor names: they are computed together, sharing one Laplace–Beltrami
+        eigen-solve (:func:`geoshape.retrieval.descriptors.compute_descriptor_set`).
 
     Returns
     -------
     (descriptor, seconds)
-        ``seconds``: descriptor computation time, file reading excluded.
+        ``seconds``: descriptor computation time, file reading excluded. For a tuple of
+        names, both are dicts by name.
 
     Raises
     ------
@@ -47,7 +50,7 @@ def describe_file(item) -> tuple[np.ndarray, float]:
         the file name.
     """
     from geoshape.io.mesh_io import load_mesh
-    from geoshape.retrieval.descriptors import compute_descriptor
+    from geoshape.retrieval.descriptors import compute_descriptor, compute_descriptor_set
 
     path, name, affinity, seed = item
     if isinstance(path, tuple):
@@ -58,13 +61,16 @@ def describe_file(item) -> tuple[np.ndarray, float]:
         raise InvalidMeshError(f"{path}: has no faces (a triangle mesh is needed)")
     t0 = time.perf_counter()
     try:
+        if isinstance(name, tuple):
+            return compute_descriptor_set(V, F, name, affinity=affinity, seed=seed, check=False)
         with single_thread_blas():
             desc = compute_descriptor(V, F, name, affinity=affinity, seed=seed, check=False)
     except GeoshapeError as exc:
         msg = str(exc)
         raise InvalidMeshError(msg if str(path) in msg else f"{path}: {msg}") from None
     except (ValueError, ArithmeticError, RuntimeError, IndexError) as exc:
-        raise InvalidMeshError(f"{path}: {name} descriptor failed: {type(exc).__name__}: {exc}") from None
+        what = "+".join(name) if isinstance(name, tuple) else name
+        raise InvalidMeshError(f"{path}: {what} descriptor failed: {type(exc).__name__}: {exc}") from None
     return desc, time.perf_counter() - t0
 
 
@@ -77,8 +83,10 @@ def compute_descriptors(paths, name: str, *, affinity: str | None = None, seed: 
     ----------
     paths : sequence of path or mesh
         Mesh files, or meshes in memory (trimesh / Open3D / pymeshlab / ``(V, F)``).
-    name : str
-        Registered descriptor (:data:`geoshape.retrieval.descriptors.MESH_DESCRIPTORS`).
+    name : str or tuple of str
+        Registered descriptor (:data:`geoshape.retrieval.descriptors.MESH_DESCRIPTORS`), or
+        several computed together per mesh (one shared Laplace–Beltrami eigen-solve; each
+        result is then a pair of dicts by name, see :func:`describe_file`).
     affinity, seed
         See :func:`geoshape.retrieval.descriptors.compute_descriptor`.
     backend, n_jobs, scheduler, progress
@@ -93,10 +101,12 @@ def compute_descriptors(paths, name: str, *, affinity: str | None = None, seed: 
     from geoshape.parallel import run_map
     from geoshape.retrieval.descriptors import descriptor_params
 
-    descriptor_params(name, affinity, seed)  # options checked before any work
+    names = name if isinstance(name, tuple) else (name,)
+    for nm in names:  # options checked before any work
+        descriptor_params(nm, affinity, seed)
     items = [(_source(p, i), name, affinity, seed) for i, p in enumerate(paths)]
     return run_map(describe_file, items, backend=backend, n_jobs=n_jobs, scheduler=scheduler,
-                   desc=name, progress=progress, on_error="return")
+                   desc="+".join(names), progress=progress, on_error="return")
 
 
 def _source(item, i: int):
@@ -131,10 +141,11 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
         As :func:`compute_descriptors`.
     method : str
         One of :data:`geoshape.retrieval.descriptors.RETRIEVAL_METHODS` (a descriptor;
-        ``"evd_ccd"``: EVD, then each query's top ``rerank_k`` re-ranked by CCD; ``"fused"``:
-        the all-pairs matrices of its components fused by
-        :func:`geoshape.retrieval.fusion.fuse_distances` with
-        :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS`).
+        ``"evd_ccd"``: EVD, then each query's top ``rerank_k`` re-ranked by CCD; ``"fused"``,
+        the default (:data:`geoshape.retrieval.descriptors.DEFAULT_RETRIEVAL_METHOD`): its
+        components computed together per mesh (one shared Laplace–Beltrami eigen-solve),
+        their all-pairs matrices fused by :func:`geoshape.retrieval.fusion.fuse_distances`
+        with :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS`).
     affinity, seed, backend, n_jobs, scheduler, progress
         As :func:`compute_descriptors`.
 
@@ -142,7 +153,9 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
     -------
     dict
         ``D`` (N, N), ``seconds_descriptors`` (wall), ``seconds_per_mesh`` (mean
-        per-mesh compute time, per descriptor), ``seconds_matrix``, ``seconds``.
+        per-mesh compute time, per descriptor; for a fusion the shared eigen-solve is split
+        evenly among the descriptors that read it, so the values sum to the method's cost),
+        ``seconds_matrix``, ``seconds``, ``descriptors`` (per name, one per mesh).
 
     Raises
     ------
@@ -169,7 +182,14 @@ def retrieval3d_matrix(paths, method: str, *, affinity: str | None = None, seed:
     paths = [p if is_mesh_object(p) else Path(p) for p in paths]
     t0 = time.perf_counter()
     descs, per_mesh = {}, {}
-    for nm in names:
+    if method in FUSIONS:  # one task per mesh: its components share one eigen-solve
+        res = compute_descriptors(paths, tuple(names), affinity=affinity, seed=seed, backend=backend,
+                                  n_jobs=n_jobs, scheduler=scheduler, progress=progress)
+        _raise_failures(paths, res)
+        for nm in names:
+            descs[nm] = [r[0][nm] for r in res]
+            per_mesh[nm] = float(np.mean([r[1][nm] for r in res]))
+    for nm in names if method not in FUSIONS else ():
         res = compute_descriptors(paths, nm, affinity=affinity, seed=seed, backend=backend,
                                   n_jobs=n_jobs, scheduler=scheduler, progress=progress)
         _raise_failures(paths, res)

@@ -39,6 +39,23 @@ class LaplacianBasis:
     def k(self) -> int:
         return self.evals.shape[0]
 
+    def leading(self, k: int, *, n_vertices: int | None = None, what: str = "this descriptor"):
+        """The first ``k`` eigenpairs (views, no copy), so descriptors that need fewer pairs
+        share one eigen-solve with those that need more.
+
+        ``n_vertices``: the vertex count of the mesh the caller describes; a basis of
+        another mesh raises. Raises :class:`InvalidOptionError` when the basis holds fewer
+        than ``k`` pairs (``what`` names the caller in the message).
+        """
+        if n_vertices is not None and self.evecs.shape[0] != n_vertices:
+            raise InvalidOptionError(f"{what}: the Laplacian basis has {self.evecs.shape[0]} vertices, "
+                                     f"the mesh {n_vertices}")
+        if not 1 <= k <= self.k:
+            raise InvalidOptionError(f"{what} needs {k} Laplacian eigenpairs; the basis holds {self.k}")
+        if k == self.k:
+            return self
+        return LaplacianBasis(self.evals[:k], self.evecs[:, :k], self.mass)
+
 
 #: relative accuracy asked of ARPACK (0 would mean machine precision)
 EIGSH_TOL = 1e-8

@@ -30,8 +30,11 @@ Spectral
 
 The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
 :data:`RETRIEVAL_METHODS`): rank by EVD, then re-rank each query's top ``K`` by CCD.
-The late fusion ``"fused"`` (:data:`FUSIONS`) computes ``evd_heat``, ``shapedna`` and ``lfd``,
-their all-pairs matrices, and fuses them query-adaptively with the cross-validated weights
+The late fusion ``"fused"`` (:data:`FUSIONS`) — the default retrieval method
+(:data:`DEFAULT_RETRIEVAL_METHOD`) of ``geoshape retrieval3d`` and of the index — computes
+``evd_heat``, ``shapedna``, ``lfd`` and ``wks`` (the three spectral ones from one shared
+Laplace–Beltrami eigen-solve, :func:`compute_descriptor_set`), their all-pairs matrices, and
+fuses them query-adaptively with the cross-validated weights
 :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS` (:func:`geoshape.retrieval.fusion.fuse_distances`).
 
 ``affinity`` (geodesic / Euclidean / combined) applies to the descriptors flagged
@@ -53,6 +56,8 @@ from geoshape.errors import InvalidOptionError
 from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 from geoshape.parallel import single_thread_blas
+from geoshape.retrieval.descriptors.evd import EVD_N_EIGENVALUES
+from geoshape.retrieval.descriptors.wks import WKS_EIGENPAIRS
 from geoshape.retrieval.fusion import FUSED_WEIGHTS
 
 __all__ = [
@@ -62,6 +67,7 @@ __all__ = [
     "RETRIEVAL_METHODS",
     "RERANKERS",
     "FUSIONS",
+    "DEFAULT_RETRIEVAL_METHOD",
     "method_descriptors",
     "DEFAULT_AFFINITY",
     "CCD_POINTS",
@@ -69,6 +75,7 @@ __all__ = [
     "descriptor_params",
     "params_key",
     "compute_descriptor",
+    "compute_descriptor_set",
     "embedding_mesh",
     "d2_descriptor",
     "shapedna_descriptor",
@@ -176,11 +183,13 @@ def d2_descriptor(V, F, *, n_pairs: int = 20000, bins: int = 64, max_ratio: floa
 
 
 @mesh_input
-def shapedna_descriptor(V, F, *, k: int = 20) -> np.ndarray:
+def shapedna_descriptor(V, F, *, k: int = 20, basis=None) -> np.ndarray:
     """ShapeDNA: the first ``k`` non-zero Laplace–Beltrami eigenvalues of the unit-area mesh.
 
     Each eigenvalue ``λ_i`` is divided by ``i`` (Weyl's law makes ``λ_i`` grow linearly
     in ``i`` on a surface), so every entry weighs about the same in the L2 distance.
+    ``basis``: eigenpairs of this mesh already computed (at least ``k + 1``), shared with
+    other spectral descriptors; ``None`` computes them.
 
     Returns
     -------
@@ -193,7 +202,9 @@ def shapedna_descriptor(V, F, *, k: int = 20) -> np.ndarray:
     from geoshape.spectral.laplacian import laplacian_basis
 
     V, F = check_mesh(V, F, allow_no_faces=True)
-    evals = laplacian_basis(V, F, k=k + 1).evals[1:]
+    if basis is None:
+        basis = laplacian_basis(V, F, k=k + 1)
+    evals = basis.leading(k + 1, n_vertices=len(V), what="shapedna").evals[1:]
     return evals / np.arange(1, k + 1)
 
 
@@ -312,6 +323,10 @@ class DescriptorSpec:
         Among ``translation``, ``rotation``, ``scale``, ``bending`` (approximate).
     params : dict
         Default keyword parameters of ``compute`` (stored with every indexed row).
+    eigenpairs : int
+        Laplace–Beltrami eigenpairs ``compute`` reads (0: none). Such a ``compute`` takes a
+        ``basis=`` keyword (:class:`geoshape.spectral.laplacian.LaplacianBasis`), so
+        :func:`compute_descriptor_set` solves once, for the largest count, and shares it.
     """
 
     name: str
@@ -321,6 +336,7 @@ class DescriptorSpec:
     domain: str
     invariances: tuple[str, ...]
     params: dict = field(default_factory=dict)
+    eigenpairs: int = 0
 
     @property
     def uses_affinity(self) -> bool:
@@ -338,17 +354,17 @@ _evd_thesis = functools.partial(_evd, config="thesis")
 
 
 @mesh_input
-def _evd_heat(V, F, *, seed=0):
+def _evd_heat(V, F, *, seed=0, basis=None):
     from geoshape.retrieval.descriptors.evd import evd_descriptor
 
-    return evd_descriptor(V, F, config="heat")
+    return evd_descriptor(V, F, config="heat", basis=basis)
 
 
 @mesh_input
-def _wks(V, F, *, seed=0):
+def _wks(V, F, *, seed=0, basis=None):
     from geoshape.retrieval.descriptors.wks import wks_descriptor
 
-    return wks_descriptor(V, F)
+    return wks_descriptor(V, F, basis=basis)
 
 
 @mesh_input
@@ -377,15 +393,16 @@ MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
                        "(thesis: 60 samples, sigma = max)", _evd_thesis, "chi2", "spectral", _INTRINSIC),
         DescriptorSpec("evd_heat", "the EVD's narrow-kernel (heat-kernel) limit from 20 exact "
                        "Laplace-Beltrami eigenvalues, sigma = 0.1 √area", _evd_heat, "chi2",
-                       "original", _INTRINSIC),
+                       "original", _INTRINSIC, eigenpairs=EVD_N_EIGENVALUES),
         DescriptorSpec("ccd", "correspondence cost between 5-D spectral embeddings (thesis)",
                        ccd_descriptor, "ccd", "spectral", _INTRINSIC),
         DescriptorSpec("d2", "D2 shape distribution, 64 bins (Osada et al. 2002)",
                        d2_descriptor, "chi2", "original", _RIGID),
         DescriptorSpec("shapedna", "first 20 Laplace-Beltrami eigenvalues, unit area (Reuter et al.)",
-                       shapedna_descriptor, "l2", "original", _INTRINSIC),
+                       shapedna_descriptor, "l2", "original", _INTRINSIC, eigenpairs=21),
         DescriptorSpec("wks", "area-weighted quantiles of log wave kernel signatures, 16 bands x 16 "
-                       "levels, from 100 Laplace-Beltrami eigenpairs", _wks, "l1", "original", _INTRINSIC),
+                       "levels, from 100 Laplace-Beltrami eigenpairs", _wks, "l1", "original", _INTRINSIC,
+                       eigenpairs=WKS_EIGENPAIRS),
         DescriptorSpec("gsv", "singular values of the sampled geodesic distance matrix",
                        gsv_descriptor, "l1", "original", _INTRINSIC),
         DescriptorSpec("shd", "spherical harmonics energies, 16 shells x l<=16 (Kazhdan et al.)",
@@ -408,6 +425,8 @@ RERANKERS = {"evd_ccd": ("evd", "ccd")}
 #: Late fusions: method -> {component descriptor: weight} (:mod:`geoshape.retrieval.fusion`).
 FUSIONS = {"fused": dict(FUSED_WEIGHTS)}
 RETRIEVAL_METHODS = tuple(MESH_DESCRIPTORS) + tuple(RERANKERS) + tuple(FUSIONS)
+#: What ``geoshape retrieval3d`` and ``geoshape index add/query`` use without ``--descriptor``.
+DEFAULT_RETRIEVAL_METHOD = "fused"
 
 
 def method_descriptors(method: str) -> tuple[str, ...]:
@@ -488,8 +507,65 @@ def compute_descriptor(V, F, name: str, *, affinity: str | None = None, seed: in
         return _compute(V, F, name, params, seed)
 
 
-def _compute(V, F, name: str, params: dict, seed: int) -> np.ndarray:
+@mesh_input
+def compute_descriptor_set(V, F, names, *, affinity: str | None = None, seed: int = 0,
+                           check: bool = True) -> tuple[dict, dict]:
+    """Several registered descriptors of one mesh, sharing one Laplace–Beltrami eigen-solve.
+
+    The descriptors that read eigenpairs (:attr:`DescriptorSpec.eigenpairs`: ``evd_heat``,
+    ``shapedna``, ``wks``) get the first pairs of one :func:`geoshape.spectral.laplacian.laplacian_basis`
+    solved for the largest count (capped at ``n - 1``); the others are computed as
+    :func:`compute_descriptor` does. A descriptor read from the shared basis equals its own
+    computation up to the eigen-solver's tolerance (``EIGSH_TOL``, relative 1e-8).
+
+    Parameters
+    ----------
+    V, F : mesh
+    names : sequence of str
+        Registered descriptors (duplicates computed once).
+    affinity : str or None
+        For the descriptors that take one (default geodesic); the others ignore it.
+    seed : int
+    check : bool
+        Validate the mesh first.
+
+    Returns
+    -------
+    descriptors : dict name -> ndarray
+    seconds : dict name -> float
+        Compute time per descriptor; the shared eigen-solve is split evenly among the
+        descriptors that read it, so the values sum to the total.
+    """
+    import time
+
+    from geoshape.spectral.laplacian import laplacian_basis
+
+    names = list(dict.fromkeys(names))
+    params = {nm: descriptor_params(nm, affinity if get_descriptor(nm).uses_affinity else None, seed)
+              for nm in names}
+    if check:
+        V, F = check_mesh(V, F, allow_no_faces=True)
+    users = [nm for nm in names if MESH_DESCRIPTORS[nm].eigenpairs > 0]
+    out, sec = {}, {}
+    with single_thread_blas():
+        basis, share = None, 0.0
+        if users:
+            k = min(max(MESH_DESCRIPTORS[nm].eigenpairs for nm in users), len(V) - 1)
+            t0 = time.perf_counter()
+            basis = laplacian_basis(V, F, k=k)
+            share = (time.perf_counter() - t0) / len(users)
+        for nm in names:
+            t0 = time.perf_counter()
+            out[nm] = _compute(V, F, nm, params[nm], seed, basis=basis if nm in users else None)
+            sec[nm] = time.perf_counter() - t0 + (share if nm in users else 0.0)
+    return out, sec
+
+
+def _compute(V, F, name: str, params: dict, seed: int, basis=None) -> np.ndarray:
     spec = MESH_DESCRIPTORS[name]
+    if basis is not None:
+        return np.asarray(spec.compute(V, F, seed=seed, basis=basis) if name != "shapedna"
+                          else spec.compute(V, F, basis=basis), dtype=np.float64)
     if spec.domain == "embedding":
         X = embedding_mesh(V, F, affinity=params["affinity"], seed=seed)
         return np.asarray(spec.compute(X, F, seed=seed), dtype=np.float64)

@@ -63,7 +63,7 @@ CUTOFF_SIGMAS = 6.0
 def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD_N_EIGENVALUES,
                    n_samples: int | None = None, affinity: str = "geodesic", sigma=None,
                    weighting: str | None = None, geodesics: str = "graph", p: int = 1,
-                   seed: int = 0) -> np.ndarray:
+                   seed: int = 0, basis=None) -> np.ndarray:
     """The EVD of one mesh: square roots of the top eigenvalues of the sample affinity.
 
     Parameters
@@ -88,6 +88,10 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
         ``"none"``: the plain sample block.
     affinity, geodesics, p, seed
         As in :func:`geoshape.spectral.embedding.spectral_embedding`.
+    basis : LaplacianBasis or None
+        ``"heat"`` only: Laplace–Beltrami eigenpairs of this mesh already computed
+        (:func:`geoshape.spectral.laplacian.laplacian_basis`, at least ``n_eigenvalues``
+        pairs), so descriptors fused together share one eigen-solve; ``None`` computes them.
 
     Returns
     -------
@@ -108,7 +112,9 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     check_choice("EVD configuration", config, EVD_CONFIG_NAMES)
     if config == "heat":
         return _heat_evd(V, F, n_eigenvalues, n_samples=n_samples, sigma=sigma, weighting=weighting,
-                         geodesics=geodesics, p=p, affinity=affinity)
+                         geodesics=geodesics, p=p, affinity=affinity, basis=basis)
+    if basis is not None:
+        raise InvalidOptionError(f"the {config!r} EVD samples its own affinity and takes no Laplacian basis")
     cfg = EVD_CONFIGS[config]
     n_samples = cfg["n_samples"] if n_samples is None else n_samples
     sigma = cfg["sigma"] if sigma is None else sigma
@@ -148,9 +154,10 @@ def evd_descriptor(V, F, *, config: str = "quadrature", n_eigenvalues: int = EVD
     return affinity_spectrum(K, w, n_eigenvalues)
 
 
-def _heat_evd(V, F, n_eigenvalues, *, affinity, **sampling) -> np.ndarray:
+def _heat_evd(V, F, n_eigenvalues, *, affinity, basis=None, **sampling) -> np.ndarray:
     """The "heat" configuration: check that no sampling option was given, then
-    :func:`heat_limit_evd` of the unit-area Laplace–Beltrami eigenvalues."""
+    :func:`heat_limit_evd` of the unit-area Laplace–Beltrami eigenvalues (of ``basis``
+    when given)."""
     from geoshape.spectral.laplacian import laplacian_basis
 
     defaults = {"n_samples": None, "sigma": None, "weighting": None, "geodesics": "graph", "p": 1}
@@ -166,7 +173,10 @@ def _heat_evd(V, F, n_eigenvalues, *, affinity, **sampling) -> np.ndarray:
             f"the 'heat' EVD needs an integer n_eigenvalues in [1, {len(V) - 1}] (fewer than the "
             f"{len(V)} vertices), got {n_eigenvalues!r}"
         )
-    return heat_limit_evd(laplacian_basis(V, F, k=int(n_eigenvalues)).evals, AREA_SIGMA)
+    k = int(n_eigenvalues)
+    if basis is None:
+        basis = laplacian_basis(V, F, k=k)
+    return heat_limit_evd(basis.leading(k, n_vertices=len(V), what="the 'heat' EVD").evals, AREA_SIGMA)
 
 
 def heat_limit_evd(mu_unit, rho: float = AREA_SIGMA) -> np.ndarray:

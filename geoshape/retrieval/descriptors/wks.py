@@ -57,7 +57,7 @@ def weighted_quantiles(X, weights, levels) -> np.ndarray:
 
 @mesh_input
 def wks_descriptor(V, F, *, k: int = WKS_EIGENPAIRS, n_energies: int = 16,
-                   n_quantiles: int = 16) -> np.ndarray:
+                   n_quantiles: int = 16, basis=None) -> np.ndarray:
     """Area-weighted quantiles of log wave kernel signatures, per energy band.
 
     Parameters
@@ -71,6 +71,10 @@ def wks_descriptor(V, F, *, k: int = WKS_EIGENPAIRS, n_energies: int = 16,
         Bands over :data:`ENERGY_RANGE`, >= 2.
     n_quantiles : int
         Quantile levels ``(j + 1/2) / n_quantiles``.
+    basis : LaplacianBasis or None
+        Eigenpairs of this mesh already computed (at least ``k`` after clipping; the first
+        ``k`` are used), so descriptors fused together share one eigen-solve; ``None``
+        computes them.
 
     Returns
     -------
@@ -92,7 +96,7 @@ def wks_descriptor(V, F, *, k: int = WKS_EIGENPAIRS, n_energies: int = 16,
     k = min(int(k), len(V) - 1)
     if k < 3:
         raise InvalidOptionError(f"wks needs at least 3 eigenpairs (4 vertices), got k = {k}")
-    basis = laplacian_basis(V, F, k=k)
+    basis = laplacian_basis(V, F, k=k) if basis is None else basis.leading(k, n_vertices=len(V), what="wks")
     log_e = np.linspace(np.log(ENERGY_RANGE[0]), np.log(ENERGY_RANGE[1]), n_energies)
     W = wave_kernel_bands(basis, log_e, BAND_STEPS * (log_e[1] - log_e[0]))
     levels = (np.arange(n_quantiles) + 0.5) / n_quantiles
