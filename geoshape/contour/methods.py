@@ -34,6 +34,7 @@ from geoshape.contour.matching import (
     MATCHERS,
     batch_match_costs,
     best_match,
+    cyclic_dp_gram_costs,
     cyclic_dp_match,
     hungarian_match,
     proximity_match,
@@ -47,6 +48,8 @@ __all__ = [
     "CONTOUR_METHODS",
     "DEFAULT_METHOD",
     "ContourSignature",
+    "SignatureStack",
+    "stack_signatures",
     "method_spec",
     "contour_signature",
     "signature_cost_matrices",
@@ -200,6 +203,18 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
     return ContourSignature(X, s, Xm)
 
 
+def _gram_parts(X1: np.ndarray, X2s: np.ndarray, n2: np.ndarray | None = None):
+    """``n1 (N,)``, ``n2 (B, M)``, ``G (B, M, N)`` with ``‖X1[i] − X2s[b, j]‖²`` equal to
+    ``n1[i] + n2[b, j] − 2 G[b, j, i]`` (``n2`` is computed unless given).
+
+    O(B·N·M·K): one matrix product per pair (the same product, so the same bits, whatever ``B``).
+    """
+    n1 = (X1**2).sum(axis=1)
+    n2 = (X2s**2).sum(axis=2) if n2 is None else n2
+    G = np.matmul(X2s, np.ascontiguousarray(X1.T))
+    return n1, n2, G
+
+
 def signature_cost_matrices(X1: np.ndarray, X2s: np.ndarray, metric: str) -> np.ndarray:
     """Point cost matrices of one embedding ``X1 (N, K)`` against a stack ``X2s (B, M, K)``.
 
@@ -210,28 +225,68 @@ def signature_cost_matrices(X1: np.ndarray, X2s: np.ndarray, metric: str) -> np.
         for t, X2 in enumerate(X2s):
             out[t] = chi2_distances(X1, X2, absolute=False, dtype=np.float32)
         return out
-    n1 = (X1**2).sum(axis=1)
-    n2 = (X2s**2).sum(axis=2)
-    G = np.matmul(X2s, np.ascontiguousarray(X1.T)).transpose(0, 2, 1)  # (B, N, M)
-    C = n1[None, :, None] + n2[:, None, :] - 2.0 * G
+    n1, n2, G = _gram_parts(X1, X2s)
+    C = n1[None, :, None] + n2[:, None, :] - 2.0 * G.transpose(0, 2, 1)
     return np.maximum(C, 0.0, out=C)
 
 
-def pair_costs(sig1: ContourSignature, sigs2: list[ContourSignature], spec: dict) -> np.ndarray:
+@dataclass(frozen=True)
+class SignatureStack:
+    """Signatures of equal point counts stacked for batched matching (see :func:`stack_signatures`).
+
+    ``X (B, M, K)``, ``s (B, M)``, ``X_mirror (B, M, K)`` or ``None``; ``sq_norms (B, V, M)``:
+    squared row norms of ``X`` (and of ``X_mirror``: ``V = 2``).
+    """
+
+    X: np.ndarray
+    s: np.ndarray
+    X_mirror: np.ndarray | None
+    sq_norms: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.X)
+
+    def tail(self, first: int) -> SignatureStack:
+        """The signatures from ``first`` on (views)."""
+        mirror = None if self.X_mirror is None else self.X_mirror[first:]
+        return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:])
+
+
+def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
+    """Stack signatures once, to match many queries against them. O(B·M·K)."""
+    X = np.stack([s.X for s in sigs])
+    Xm = np.stack([s.X_mirror for s in sigs]) if sigs[0].X_mirror is not None else None
+    norms = np.stack([(Xv**2).sum(axis=2) for Xv in (X, Xm) if Xv is not None], axis=1)
+    return SignatureStack(X, np.stack([s.s for s in sigs]), Xm, norms)
+
+
+def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
     """Retrieval distances from one signature to several: ``(len(sigs2),)``.
 
-    With ``mirror`` the distance is the smaller of the costs against each shape and against
-    its mirror image. Shapes in ``sigs2`` must have equal point counts (they are stacked).
+    ``sigs2``: a list of signatures or a :class:`SignatureStack` of them. With ``mirror``
+    the distance is the smaller of the costs against each shape and against its mirror
+    image. Shapes in ``sigs2`` must have equal point counts (they are stacked).
+
+    For the ``dp`` matcher with the squared-Euclidean cost the cost matrices are never
+    stored: the compiled matcher builds each from the matrix product
+    (:func:`geoshape.contour.matching.cyclic_dp_gram_costs`, same values).
     """
-    if not sigs2:
+    if len(sigs2) == 0:
         return np.zeros(0)
-    X2 = np.stack([s.X for s in sigs2])
-    s2 = np.stack([s.s for s in sigs2])
-    s1 = np.broadcast_to(sig1.s, (len(sigs2), len(sig1.s)))
+    stack = sigs2 if isinstance(sigs2, SignatureStack) else stack_signatures(list(sigs2))
+    X2, s2 = stack.X, stack.s
+    if spec["matcher"] == "dp" and spec["metric"] == "sqeuclidean":
+        variants = [X2, stack.X_mirror] if spec["mirror"] else [X2]
+        parts = [_gram_parts(sig1.X, Xv, stack.sq_norms[:, v]) for v, Xv in enumerate(variants)]
+        G = np.stack([p[2] for p in parts], axis=1) if spec["mirror"] else parts[0][2][:, None]
+        opts = spec["matcher_options"]
+        return cyclic_dp_gram_costs(G, parts[0][0], stack.sq_norms[:, :len(variants)],
+                                    skip_cost=opts.get("skip_cost", 0.3),
+                                    n_starts=opts.get("n_starts", 4))
+    s1 = np.broadcast_to(sig1.s, (len(stack), len(sig1.s)))
     C = signature_cost_matrices(sig1.X, X2, spec["metric"])
     if spec["mirror"]:
-        X2m = np.stack([s.X_mirror for s in sigs2])
-        Cm = signature_cost_matrices(sig1.X, X2m, spec["metric"])
+        Cm = signature_cost_matrices(sig1.X, stack.X_mirror, spec["metric"])
         C = np.stack([C, Cm], axis=1)  # (B, 2, N, M)
         # Mirror point i is the reflection of point -i, so its arc-length position is 1 - s.
         s2m = np.mod(1.0 - np.roll(s2[:, ::-1], 1, axis=1), 1.0)

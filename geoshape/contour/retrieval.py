@@ -21,6 +21,7 @@ from geoshape.contour.methods import (
     contour_signature,
     method_spec,
     pair_costs,
+    stack_signatures,
 )
 from geoshape.parallel import single_thread_blas
 
@@ -45,12 +46,23 @@ def contour_signatures(contours, method: str = DEFAULT_METHOD, *, backend: str |
 
 
 def _block_costs(sigs_a, sigs_b, spec):
-    out = np.empty((len(sigs_a), len(sigs_b)))
+    """Distances of a block ``sigs_a × sigs_b``, ``(len(sigs_a), len(sigs_b))``.
+
+    ``sigs_b`` is stacked once per block. When both are the same signatures (a diagonal
+    block of :func:`geoshape.parallel.pairwise_matrix`, which keeps the upper triangle) only
+    the pairs above the diagonal are matched; the rest is left at 0.
+    """
+    out = np.zeros((len(sigs_a), len(sigs_b)))
+    same = len(sigs_a) == len(sigs_b) and all(a is b for a, b in zip(sigs_a, sigs_b, strict=True))
     batch = 256
     with single_thread_blas():  # small products: several BLAS threads on busy cores spin
-        for r, sig in enumerate(sigs_a):
-            for c in range(0, len(sigs_b), batch):
-                out[r, c:c + batch] = pair_costs(sig, list(sigs_b[c:c + batch]), spec)
+        for c in range(0, len(sigs_b), batch):
+            stack = stack_signatures(list(sigs_b[c:c + batch]))
+            for r, sig in enumerate(sigs_a):
+                first = max(0, r + 1 - c) if same else 0
+                if first < len(stack):
+                    part = stack if first == 0 else stack.tail(first)
+                    out[r, c + first:c + len(stack)] = pair_costs(sig, part, spec)
     return out
 
 

@@ -1,0 +1,127 @@
+"""``geoshape bench speed2d``: wall time of the default 2D all-pairs matrix at 1000 and 1400 shapes.
+
+The collection is Tari-1000 followed by perturbed copies of randomly chosen Tari-1000 shapes
+(``geoshape gen perturb2d`` kinds in turn: mirror, noise, notch, erode; seeded), so the first
+1000 shapes are Tari-1000 itself. For each size: descriptors (all shapes, processes on all
+cores), the all-pairs matrix of the ``default`` method (processes), and re-ranking (``lcdp``,
+one process), each timed by the wall clock. Image reading and perturbing are not timed.
+"""
+
+from __future__ import annotations
+
+HELP = "2D all-pairs speed: default method on Tari-1000 and a 1400-shape extension"
+
+TARGET_SECONDS = 240.0
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--sizes", default="1000,1400", help="collection sizes (default 1000,1400)")
+    parser.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the perturbed copies (default 0)")
+    parser.add_argument("--reference", default=None,
+                        help="a saved Tari-1000 default matrix (.npy) the 1000-shape matrix is "
+                        "compared with (identical / largest difference)")
+    parser.add_argument("--no-write", action="store_true", help="print only")
+
+
+def extended_collection(n_total: int, n_points: int, seed: int):
+    """Tari-1000 contours and labels, then ``n_total − 1000`` perturbed copies (seeded)."""
+    import numpy as np
+    from geoshape_datasets_gen.perturb2d import PERTURBATIONS, perturb_mask
+
+    from geoshape.geometry.contour import extract_contour
+    from geoshape.io.datasets import dataset_dir, read_labels
+    from geoshape.io.silhouette import load_silhouette
+
+    items = read_labels(dataset_dir("tari1000"))
+    contours = [extract_contour(load_silhouette(it.path), n_points, name=str(it.path)) for it in items]
+    labels = [it.label for it in items]
+    rng = np.random.default_rng(seed)
+    n_extra = max(0, n_total - len(items))
+    for t, src in enumerate(rng.choice(len(items), size=n_extra, replace=n_extra > len(items))):
+        kind = PERTURBATIONS[t % len(PERTURBATIONS)]
+        mask = perturb_mask(load_silhouette(items[src].path), kind, rng, index=t, parity=0)
+        contours.append(extract_contour(mask, n_points, name=f"{items[src].path} ({kind})"))
+        labels.append(labels[src])
+    return contours[:n_total], labels[:n_total]
+
+
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its finished (joined) children."""
+    import resource
+
+    return sum(getattr(resource.getrusage(who), f) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+               for f in ("ru_utime", "ru_stime"))
+
+
+def run(args) -> int:
+    import os
+    import platform
+    import time
+
+    import numpy as np
+
+    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.contour.retrieval import contour_signatures, shape_distance_matrix
+    from geoshape.metrics.retrieval import retrieval_metrics
+    from geoshape.retrieval.rerank import rerank
+
+    sizes = sorted({int(s) for s in args.sizes.split(",") if s.strip()})
+    contours, labels = extended_collection(max(sizes), args.n_points, args.seed)
+    workers = args.n_jobs or os.cpu_count()
+    shape_distance_matrix(contours[:20], n_jobs=args.n_jobs)  # load the compiled kernels
+    rows, notes = [], []
+    for n in sizes:
+        print(f"[speed2d] {n} shapes …", flush=True)
+        cpu0 = _cpu_seconds()
+        t0 = time.perf_counter()
+        sigs = contour_signatures(contours[:n], n_jobs=args.n_jobs)
+        t1 = time.perf_counter()
+        D = shape_distance_matrix(None, signatures=sigs, n_jobs=args.n_jobs)
+        t2 = time.perf_counter()
+        rerank(D)
+        t3 = time.perf_counter()
+        cpu = _cpu_seconds() - cpu0
+        pairs = n * (n - 1) // 2
+        total = t3 - t0
+        rows.append([n, f"{pairs:,}", f"{t1 - t0:.1f}", f"{t2 - t1:.1f}",
+                     f"{(t2 - t1) / pairs * 1e6:.0f}", f"{(t2 - t1) * workers / pairs * 1e6:.0f}",
+                     f"{t3 - t2:.2f}", f"{total:.1f}", "yes" if total <= TARGET_SECONDS else "no",
+                     f"{cpu:.0f}", f"{cpu / workers:.0f}"])
+        print("  " + " | ".join(str(x) for x in rows[-1]), flush=True)
+        if n == 1000:
+            m = retrieval_metrics(D, labels[:n])
+            notes.append(f"The 1000-shape matrix is Tari-1000's: bull's-eye {m['bulls_eye']:.2f} %, "
+                         f"top-10 total {m['top_k_total']}/{m['top_k_max']}.")
+            if args.reference:
+                ref = np.load(args.reference)
+                same = ref.shape == D.shape and np.array_equal(ref, D)
+                diff = float(np.abs(ref - D).max()) if ref.shape == D.shape else float("nan")
+                notes.append(f"Against the reference matrix `{os.path.basename(args.reference)}` "
+                             f"(the NumPy implementation's): {'identical' if same else 'different'}"
+                             f", largest difference {diff:.3g}.")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    table = markdown_table(["shapes", "pairs", "descriptors s", "all-pairs matrix s",
+                            "µs / pair (wall)", "µs / pair / worker", "re-ranking s", "total s",
+                            f"total ≤ {TARGET_SECONDS:.0f} s", "CPU s", "CPU s / workers"], rows)
+    text = (
+        "## 2D all-pairs speed (default method)\n\n"
+        f"Command: `geoshape bench speed2d --sizes {','.join(map(str, sizes))}` "
+        f"({time.strftime('%Y-%m-%d')}, {args.n_points} contour points, processes, {workers} "
+        f"workers, {platform.machine()}; 2 cores shared with other jobs, 1-min load average "
+        f"{load:.1f} at the end, so the times are upper bounds). Collection: Tari-1000, then "
+        "perturbed copies (mirror, noise, notch, erode in turn; seed "
+        f"{args.seed}) of randomly chosen Tari-1000 shapes. 'total' = descriptors + matrix + "
+        "re-ranking (lcdp), image reading excluded. 'CPU s' is the user + system time of the "
+        "parent and its worker processes over the same span; divided by the workers it is the "
+        "wall time the run would take with its cores to itself. The matcher (cyclic DP with its start "
+        "ranking) and the visibility test of the inner distance run as compiled loops (numba) "
+        "that repeat the NumPy implementation's arithmetic, so the matrix is the same to the "
+        "bit.\n\n" + table + ("\n\n" + " ".join(notes) if notes else "") + "\n"
+    )
+    print(text)
+    if not args.no_write:
+        update_results_section("speed2d", text)
+        print("updated section speed2d of docs/RESULTS.md")
+    return 0
