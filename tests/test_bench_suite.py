@@ -92,3 +92,20 @@ def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.SECTION} -->" in text and "| tiny | geoshape | 1 |" in text
     assert (tmp_path / "tiny" / "generator.json").is_file()
+
+
+def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_path, monkeypatch):
+    spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
+                        params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
+                                "resolution": 48})
+    monkeypatch.setattr(suite, "DEV_SETS", (spec,))
+    monkeypatch.setattr(suite, "sensitivity_variants", lambda: [("n_refine 5 → 2 (×0.5)", {"n_refine": 2})])
+    monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
+    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
+                              seed=0, sensitivity=True, no_results=False, section=None)
+    assert suite.run_suite(args) == 0
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert f"<!-- BEGIN {suite.SENSITIVITY_SECTION} -->" in text
+    assert f"<!-- BEGIN {suite.SECTION} -->" not in text
+    rows = [line for line in text.splitlines() if line.startswith("| default") or line.startswith("| n_refine")]
+    assert len(rows) == 2 and all(float(r.split("|")[2]) >= 0 for r in rows)

@@ -52,7 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --suite: folder of the generated dev sets, reused when their generator "
                    "parameters match (default $XDG_CACHE_HOME/geoshape/dev-sets or ~/.cache/…)")
     p.add_argument("--sensitivity", action="store_true",
-                   help="with --suite: also each numeric default of the geoshape method ×0.5 and ×2 (long)")
+                   help="with --suite: instead of the suite table, the mean error of each numeric default of "
+                   "the geoshape method ×0.5 and ×2 (its own RESULTS section; long: use --limit)")
 
 
 def run_pyfm(V1, F1, V2, F2) -> np.ndarray:

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 SECTION = "correspondence-generalization"
+SENSITIVITY_SECTION = "correspondence-sensitivity"
 FAILURE_ERROR = 0.1
 """A pair whose mean direct error (÷ √area) exceeds this is a failure."""
 FLIP_RATIO = 0.5
@@ -182,30 +183,52 @@ def sensitivity_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, dict]]:
 
 
 def run_suite(args: argparse.Namespace) -> int:
-    from geoshape.bench.correspondence import evaluate_pairs, peer_methods
-    from geoshape.bench.experiments._common import machine_note
-    from geoshape.bench.results import markdown_table, update_results_section
+    """The suite table (every dev set, the geoshape method and its peer), or with
+    ``--sensitivity`` the sensitivity table instead (geoshape only, its own section)."""
+    from geoshape.bench.correspondence import peer_methods
 
     dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
-    methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
     log = lambda text: print(text, flush=True)  # noqa: E731
-    folders = [(spec, prepare_set(spec, dev_dir, log)) for spec in DEV_SETS]
-    rows, sets = [], []
-    for spec, folder in folders:
+    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in DEV_SETS]
+    if args.sensitivity:
+        return _run_sensitivity(args, sets, log)
+    methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
+    return _run_table(args, sets, methods, log)
+
+
+def _spread_note(limit) -> str:
+    return f" (--limit: {limit} evenly spaced rows of each pairs file)" if limit else ""
+
+
+def _set_list(sets) -> str:
+    return ", ".join(f"{s.name} ({s.pairs_file})" for s, _ in sets)
+
+
+def _write(args, section: str, text: str) -> None:
+    from geoshape.bench.results import update_results_section
+
+    print(text)
+    if not args.no_results:
+        update_results_section(args.section or section, text)
+
+
+def _run_table(args, sets, methods, log) -> int:
+    from geoshape.bench.correspondence import evaluate_pairs
+    from geoshape.bench.experiments._common import machine_note
+
+    rows = []
+    for spec, folder in sets:
         log(f"== {spec.name} ({folder}/{spec.pairs_file})")
         results, has_sym = evaluate_pairs(folder, spec.pairs_file, methods, limit=args.limit,
                                           landmarks=args.landmarks, seed=args.seed, spread=True,
                                           log=log)
-        sets.append((spec, folder))
         for m in methods:
             rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
     limit = f" --limit {args.limit}" if args.limit else ""
-    spread = f" (--limit: {args.limit} evenly spaced rows of each pairs file)" if args.limit else ""
     cmd = (f"geoshape bench correspondence --suite generalization{limit} --methods {','.join(methods)} "
-           f"--landmarks {args.landmarks}" + (" --sensitivity" if args.sensitivity else ""))
-    set_list = ", ".join(f"{s.name} ({s.pairs_file})" for s, _ in sets)
+           f"--landmarks {args.landmarks}")
     text = (f"### 3D correspondence — generalization suite (issue #14)\n\nCommand: `{cmd}`. "
-            f"Sets: {set_list}{spread}; "
+            f"Sets: {_set_list(sets)}{_spread_note(args.limit)}; "
             f"the generated ones ({DEV_PAIRS} pairs, {DEV_VERTICES} vertices, seed {DEV_SEED}) as in "
             f"docs/datasets.md \"Dev sets\". Errors: geodesic distance / √area on the target, mean over "
             f"pairs of the per-pair mean, direct and symmetry-aware (— where the set has no symmetric "
@@ -214,25 +237,34 @@ def run_suite(args: argparse.Namespace) -> int:
             f"pairs with mean direct error > {FAILURE_ERROR} (or an exception); flips: failures whose "
             f"symmetry-aware error is under {FLIP_RATIO:g} × the direct one. Times: end to end per pair "
             f"({machine_note()}).\n\n{suite_table(rows)}\n")
-    if args.sensitivity:
-        variants = sensitivity_variants()
-        header = ["geoshape option"] + [s.name for s, _ in sets]
-        base = {name: m["mean"] for name, method, m in rows if method == "geoshape"}
-        body = [["default"] + [_fmt(base.get(s.name, float("nan"))) for s, _ in sets]]
-        for label, options in variants:
-            log(f"== sensitivity: {label}")
-            row = [label]
-            for spec, folder in sets:
-                results, has_sym = evaluate_pairs(folder, spec.pairs_file, ["geoshape"], limit=args.limit,
-                                                  landmarks=args.landmarks, seed=args.seed, options=options,
-                                                  spread=True,
-                                                  log=log)
-                row.append(_fmt(set_metrics(results, has_sym)["mean"]))
-            body.append(row)
-        text += ("\nSensitivity: mean direct error per set of the geoshape method with one default "
-                 "changed (×0.5 and ×2; counts rounded, at least 1).\n\n"
-                 + markdown_table(header, body) + "\n")
-    print(text)
-    if not args.no_results:
-        update_results_section(args.section or SECTION, text)
+    _write(args, SECTION, text)
+    return 0
+
+
+def _run_sensitivity(args, sets, log) -> int:
+    """Mean direct error per set of the geoshape default and of each :func:`sensitivity_variants`
+    on the same ``--limit`` pairs per set; O(variants × sets × limit) pipeline runs."""
+    from geoshape.bench.correspondence import evaluate_pairs
+    from geoshape.bench.experiments._common import machine_note
+    from geoshape.bench.results import markdown_table
+
+    header = ["geoshape option"] + [s.name for s, _ in sets]
+    body = []
+    for label, options in [("default", {})] + sensitivity_variants():
+        log(f"== sensitivity: {label}")
+        row = [label]
+        for spec, folder in sets:
+            results, has_sym = evaluate_pairs(folder, spec.pairs_file, ["geoshape"], limit=args.limit,
+                                              landmarks=args.landmarks, seed=args.seed, options=options,
+                                              spread=True, log=log)
+            row.append(_fmt(set_metrics(results, has_sym)["mean"]))
+        body.append(row)
+    limit = f" --limit {args.limit}" if args.limit else ""
+    text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
+            f"Command: `geoshape bench correspondence --suite generalization --sensitivity{limit} "
+            f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
+            f"error per set (as in the generalization suite) of the geoshape method with one default "
+            f"changed ×0.5 and ×2 (counts rounded, at least 1) ({machine_note()}).\n\n"
+            + markdown_table(header, body) + "\n")
+    _write(args, SENSITIVITY_SECTION, text)
     return 0
