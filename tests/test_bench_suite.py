@@ -107,5 +107,5 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.SENSITIVITY_SECTION} -->" in text
     assert f"<!-- BEGIN {suite.SECTION} -->" not in text
-    rows = [line for line in text.splitlines() if line.startswith("| default") or line.startswith("| n_refine")]
+    rows = [line for line in text.splitlines() if line.startswith(("| default", "| n_refine"))]
     assert len(rows) == 2 and all(float(r.split("|")[2]) >= 0 for r in rows)

@@ -43,6 +43,10 @@ if TYPE_CHECKING:
 
 #: above this many vertices (either mesh) screening and refinement work on samples only
 LARGE_MESH = 8000
+#: the final ZoomOut uses at most one eigenpair per this many vertices of the smaller mesh, so
+#: each basis function is resolved by the mesh (on a 162-vertex sphere, 100 of its 161
+#: eigenpairs turned the exact map into a rotation)
+FINAL_VERTICES_PER_EIGENPAIR = 20
 #: which orientation of mapped triangles the ``prefer`` option asks for
 PREFERENCES = ("preserving", "reversing")
 
@@ -77,7 +81,7 @@ class GeoshapeOptions:
     """Farthest-point control points of the thin-plate spline."""
     lb_k: int = field(default=60, metadata=_int(1))
     """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
-    final_k: int = field(default=60, metadata=_int(1))
+    final_k: int = field(default=100, metadata=_int(1))
     """Basis size the final full-resolution ZoomOut grows to from ``lb_k`` (≤ ``lb_k``: none)."""
     final_step: int = field(default=10, metadata=_int(1))
     """Basis size added per iteration of the final full-resolution ZoomOut."""
@@ -223,7 +227,7 @@ class PairContext:
     lb_k: int
     """Eigenpairs used: ``lb_k`` clipped to n − 1 of both meshes."""
     final_k: int
-    """Basis size of the final full-resolution ZoomOut: ``final_k`` clipped to n − 1, at least ``lb_k``."""
+    """Final ZoomOut basis size: ``final_k``, at most n / FINAL_VERTICES_PER_EIGENPAIR, at least ``lb_k``."""
     screen_k: int
     """``screen_k`` clipped to ``lb_k``."""
     s1: np.ndarray
@@ -302,7 +306,7 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
     seed = options.seed
     lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
     screen_k = min(options.screen_k, lb_k)
-    final_k = max(lb_k, min(options.final_k, m1.n - 1, m2.n - 1))
+    final_k = max(lb_k, min(options.final_k, min(m1.n, m2.n) // FINAL_VERTICES_PER_EIGENPAIR))
     m1.laplacian(final_k), m2.laplacian(final_k)  # one eigen-solve per mesh for every stage
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
     zs, ss = options.zoomout_samples, options.screen_samples
