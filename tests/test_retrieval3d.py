@@ -177,7 +177,7 @@ def test_descriptor_shapes_and_metrics():
     assert compute_descriptor(V, F, "shapedna").shape == (20,)
     assert compute_descriptor(V, F, "evd").shape == (20,)
     for name, spec in MESH_DESCRIPTORS.items():
-        assert spec.metric in ("chi2", "l1", "l2", "lfd", "ccd"), name
+        assert spec.metric in ("chi2", "l1", "l2", "lfd", "pcavox", "ccd"), name
 
 
 def test_distance_matrix_symmetric_zero_diagonal():

@@ -9,7 +9,9 @@ On the original mesh
     ``d2`` (Osada et al. 2002 shape distribution), ``shapedna`` (Reuter et al. 2006,
     Laplace–Beltrami eigenvalues), ``gsv`` (singular values of the sampled geodesic
     distance matrix), ``shd`` (spherical harmonics, Kazhdan et al. 2003), ``lfd`` (light
-    field, Chen et al. 2003).
+    field, Chen et al. 2003), ``pcavox`` (PCA-aligned surface occupancy grid, each principal
+    axis scaled to the unit cube, compared over the plausible axis flips and swaps;
+    :mod:`geoshape.retrieval.descriptors.pcavox`).
 On the 3D spectral embedding (thesis Fig. 4.10)
     ``d2_emb``, ``shd_emb``, ``lfd_emb``: the same descriptors computed on the mesh whose
     vertices are the 2nd–4th √λ-scaled eigenvectors of the affinity (first three columns of
@@ -381,6 +383,13 @@ def _lfd(V, F, *, seed=0):
     return lfd_descriptor(V, F, seed=seed)
 
 
+@mesh_input
+def _pcavox(V, F, *, seed=0):
+    from geoshape.retrieval.descriptors.pcavox import pcavox_descriptor
+
+    return pcavox_descriptor(V, F, seed=seed)
+
+
 _RIGID = ("translation", "rotation", "scale")
 _INTRINSIC = _RIGID + ("bending",)
 
@@ -409,6 +418,8 @@ MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
                        _shd, "l2", "original", _RIGID),
         DescriptorSpec("lfd", "light field: Zernike + Fourier of 10 dodecahedron silhouettes (Chen et al.)",
                        _lfd, "lfd", "original", _RIGID),
+        DescriptorSpec("pcavox", "PCA-aligned surface occupancy grid 16^3, each axis scaled to the cube; "
+                       "min L2 over plausible axis flips / swaps", _pcavox, "pcavox", "original", _RIGID),
         DescriptorSpec("d2_emb", "D2 on the 3D spectral embedding", d2_descriptor, "chi2",
                        "embedding", _INTRINSIC),
         DescriptorSpec("shd_emb", "spherical harmonics descriptor on the 3D spectral embedding",
@@ -419,7 +430,7 @@ MESH_DESCRIPTORS: dict[str, DescriptorSpec] = {
 }
 
 #: Distances between descriptors, by name.
-METRICS = ("chi2", "l1", "l2", "lfd", "ccd")
+METRICS = ("chi2", "l1", "l2", "lfd", "pcavox", "ccd")
 #: Everything ``geoshape retrieval3d --descriptor`` accepts: descriptors + re-ranking schemes.
 RERANKERS = {"evd_ccd": ("evd", "ccd")}
 #: Late fusions: method -> {component descriptor: weight} (:mod:`geoshape.retrieval.fusion`).
@@ -597,8 +608,8 @@ def descriptor_distances(name: str, queries, database) -> np.ndarray:
 
     Notes
     -----
-    χ², L1, L2: O(Q M d), vectorised. LFD: O(Q M f^2 (100 d + 600)). CCD: one eigenvector
-    alignment per pair, O(Q M k^3 p^2) for ``p`` embedding points (greedy reordering).
+    χ², L1, L2: O(Q M d), vectorised. LFD: O(Q M f^2 (100 d + 600)). PCAVOX: O(48 Q M d).
+    CCD: one eigenvector alignment per pair, O(Q M k^3 p^2) for ``p`` embedding points (greedy reordering).
     """
     metric = get_descriptor(name).metric
     if metric == "ccd":
@@ -613,6 +624,10 @@ def descriptor_distances(name: str, queries, database) -> np.ndarray:
         from geoshape.retrieval.descriptors.lfd import lfd_distance_matrix
 
         return lfd_distance_matrix(X, Y)
+    if metric == "pcavox":
+        from geoshape.retrieval.descriptors.pcavox import pcavox_distance_matrix
+
+        return pcavox_distance_matrix(X, Y)
     X = X.reshape(len(X), -1)
     Y = Y.reshape(len(Y), -1)
     if X.shape[1] != Y.shape[1]:
@@ -631,7 +646,7 @@ def descriptor_distance_matrix(name: str, descriptors, *, backend: str | None = 
                                progress: bool = False) -> np.ndarray:
     """All-pairs dissimilarity matrix of per-shape descriptors.
 
-    Cheap metrics (χ², L1, L2, LFD) run in this process; CCD (one eigenvector alignment per
+    Cheap metrics (χ², L1, L2, LFD, PCAVOX) run in this process; CCD (one eigenvector alignment per
     pair) is spread over the parallel runner by :func:`geoshape.parallel.pairwise_matrix`.
 
     Returns

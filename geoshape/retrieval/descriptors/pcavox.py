@@ -1,0 +1,233 @@
+"""PCA-aligned surface occupancy grid (``pcavox``): a compact extrinsic descriptor for rigid shapes.
+
+The surface is sampled (``n_points`` area-weighted random points, seeded, as
+:func:`geoshape.retrieval.descriptors.shd.surface_samples`), centred at the sample mean and
+rotated into its principal axes (eigenvectors of the sample covariance, largest variance
+first). Each principal coordinate is then divided by its largest absolute value, so the
+shape fills the cube ``[-1, 1]^3`` along every axis: the grid is invariant to translation,
+rotation, uniform scale, and also to the scale of each principal axis — two tables, a square
+and an oblong one, give similar grids (the axis proportions are kept separately, below). The
+samples are counted in an ``R x R x R`` grid, the counts divided by their sum, blurred by a
+Gaussian of ``sigma`` cells and square-rooted, so the L2 distance of two grids is (√2 ×) the
+Hellinger distance of the two blurred occupancy distributions.
+
+Principal axes come with a sign ambiguity, and with an order ambiguity when two variances are
+close. The distance therefore takes the smallest L2 distance over the signed axis
+permutations (the 48 symmetries of the cube, reflections included) that are *plausible*
+for the pair: the 8 sign flips always, and a permutation moving axis ``i`` to axis ``j`` only
+when one of the two shapes has near-equal spreads on axes ``i`` and ``j`` (ratio of standard
+deviations above :data:`PCAVOX_DEGENERATE`). Without that restriction a permutation could
+match, say, a bar's long axis to a disc's thin axis.
+
+Descriptor array: ``(R^3 + 3,)`` float64 — the square-rooted grid, flattened (C order, axes
+0, 1, 2 = largest to smallest variance), then the spreads ``(1, s1 / s0, s2 / s0)`` (standard
+deviations along the principal axes, relative to the largest). Compare with
+:func:`pcavox_distance_matrix` (metric ``"pcavox"``).
+
+Related to the PCA-normalised voxel descriptors of Vranić (2004) and the Princeton Shape
+Benchmark's ``VOXEL``; the anisotropic per-axis normalisation and the restricted symmetry
+search are this module's choices.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+
+import numpy as np
+
+from geoshape.errors import InvalidOptionError
+from geoshape.io.interop import mesh_input
+from geoshape.io.validate import check_mesh
+
+__all__ = [
+    "PCAVOX_RESOLUTION",
+    "PCAVOX_POINTS",
+    "PCAVOX_SIGMA",
+    "PCAVOX_DEGENERATE",
+    "principal_frame",
+    "pcavox_descriptor",
+    "pcavox_distance_matrix",
+]
+
+#: grid cells per axis
+PCAVOX_RESOLUTION = 16
+#: surface samples
+PCAVOX_POINTS = 20000
+#: Gaussian blur of the grid, in cells
+PCAVOX_SIGMA = 0.7
+#: two principal axes may be swapped when the ratio of their standard deviations exceeds this
+PCAVOX_DEGENERATE = 0.8
+
+
+def principal_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points in their principal frame, each axis scaled to ``[-1, 1]``.
+
+    Parameters
+    ----------
+    P : (N, 3) float
+        Points (surface samples).
+
+    Returns
+    -------
+    Y : (N, 3) float64
+        ``(P - mean) @ E`` (``E``: covariance eigenvectors, largest eigenvalue first), each
+        column divided by its largest absolute value.
+    spreads : (3,) float64
+        Standard deviations along the principal axes divided by the largest: ``(1, s1/s0, s2/s0)``.
+
+    Raises
+    ------
+    InvalidOptionError
+        If the points span no volume direction at all (zero extent).
+    """
+    X = np.asarray(P, dtype=np.float64)
+    X = X - X.mean(axis=0)
+    w, E = np.linalg.eigh(X.T @ X / len(X))
+    order = np.argsort(w)[::-1]
+    w, E = np.maximum(w[order], 0.0), E[:, order]
+    if not w[0] > 0:
+        raise InvalidOptionError("the shape has zero extent; no descriptor can be computed")
+    Y = X @ E
+    half = np.abs(Y).max(axis=0)
+    # a flat shape (zero thickness along an axis) stays flat, in the middle of the grid
+    Y = Y / np.where(half > 1e-12 * half[0], half, 1.0)
+    return Y, np.sqrt(w / w[0])
+
+
+@mesh_input
+def pcavox_descriptor(V, F, *, resolution: int = PCAVOX_RESOLUTION, n_points: int = PCAVOX_POINTS,
+                      sigma: float = PCAVOX_SIGMA, seed: int = 0) -> np.ndarray:
+    """PCA-aligned, per-axis normalised occupancy grid of the surface, plus the axis spreads.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+        Triangles (a mesh without faces is sampled at its vertices).
+    resolution : int
+        Grid cells per axis ``R``.
+    n_points : int
+        Area-weighted surface samples.
+    sigma : float
+        Gaussian blur, in cells (0: none).
+    seed : int
+        Seed of the surface sampling.
+
+    Returns
+    -------
+    pcavox : (resolution**3 + 3,) float64
+        Square root of the blurred occupancy (sums to 1 before the root), flattened, then
+        the three relative spreads. Compare with :func:`pcavox_distance_matrix`.
+
+    Examples
+    --------
+    >>> import trimesh
+    >>> m = trimesh.creation.box((1.0, 2.0, 3.0))
+    >>> d = pcavox_descriptor(m.vertices, m.faces, resolution=8)
+    >>> d.shape, bool(abs(d[-2] - 2 / 3) < 0.05)
+    ((515,), True)
+
+    Notes
+    -----
+    Time O(m + n_points log m + R^3) (sampling, a 3x3 eigenproblem, a separable blur);
+    about 20 ms for a 5k-vertex mesh.
+    """
+    from scipy.ndimage import gaussian_filter
+
+    from geoshape.retrieval.descriptors.shd import surface_samples
+
+    V, F = check_mesh(V, F, allow_no_faces=True)
+    if resolution < 2 or n_points < 1 or sigma < 0:
+        raise InvalidOptionError(f"pcavox needs resolution >= 2, n_points >= 1, sigma >= 0; got "
+                                 f"{resolution}, {n_points}, {sigma}")
+    Y, spreads = principal_frame(surface_samples(V, F, n_points, seed))
+    idx = np.minimum(((Y + 1.0) * 0.5 * resolution).astype(np.int64), resolution - 1)
+    G = np.bincount((idx[:, 0] * resolution + idx[:, 1]) * resolution + idx[:, 2],
+                    minlength=resolution**3).astype(np.float64).reshape((resolution,) * 3)
+    G /= G.sum()
+    if sigma > 0:
+        G = gaussian_filter(G, sigma, mode="constant")
+        G /= G.sum()
+    return np.concatenate([np.sqrt(G).ravel(), spreads])
+
+
+@functools.lru_cache(maxsize=4)
+def _symmetries(resolution: int) -> tuple[np.ndarray, np.ndarray]:
+    """The 48 signed axis permutations: their axis maps ``(48, 3)`` and cell permutations ``(48, R^3)``.
+
+    ``cells[g]`` reorders a flattened grid ``x`` so that ``x[cells[g]]`` is the grid of the
+    shape transformed by symmetry ``g`` (``y_i = s_i x_{p_i}``); ``axes[g] = p``.
+    """
+    R = resolution
+    c = (np.arange(R) + 0.5) / R * 2.0 - 1.0
+    idx = np.stack(np.meshgrid(np.arange(R), np.arange(R), np.arange(R), indexing="ij"), -1).reshape(-1, 3)
+    X = c[idx]
+    axes, cells = [], []
+    for p in itertools.permutations(range(3)):
+        for s in itertools.product((1.0, -1.0), repeat=3):
+            X2 = X[:, p] * np.array(s)
+            I2 = np.floor((X2 + 1.0) * 0.5 * R).astype(np.int64)
+            perm = np.empty(R**3, dtype=np.int64)
+            perm[(I2[:, 0] * R + I2[:, 1]) * R + I2[:, 2]] = np.arange(R**3)
+            axes.append(p)
+            cells.append(perm)
+    return np.array(axes), np.array(cells)
+
+
+def _split(X) -> tuple[np.ndarray, np.ndarray, int]:
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim != 2:
+        raise InvalidOptionError(f"pcavox descriptors must be a (N, R^3 + 3) array, got shape {X.shape}")
+    R = round((X.shape[1] - 3) ** (1 / 3))
+    if R < 2 or R**3 + 3 != X.shape[1]:
+        raise InvalidOptionError(f"pcavox descriptor length {X.shape[1]} is not R^3 + 3")
+    return X[:, :-3], X[:, -3:], R
+
+
+def pcavox_distance_matrix(XA, XB=None, *, degenerate: float = PCAVOX_DEGENERATE) -> np.ndarray:
+    """Smallest L2 distance of the grids over the plausible signed axis permutations.
+
+    Parameters
+    ----------
+    XA : (N, R^3 + 3) float
+    XB : (M, R^3 + 3) float, optional
+        Default ``XA``.
+    degenerate : float
+        A permutation moving principal axis ``i`` to ``j`` is tried for a pair only when, in
+        one of the two shapes, the smaller of the spreads of axes ``i`` and ``j`` is more than
+        ``degenerate`` times the larger (1: sign flips only; 0: all 48 symmetries).
+
+    Returns
+    -------
+    D : (N, M) float64
+        ``D[a, b] = min_g ‖A_a − g(B_b)‖₂`` over the allowed ``g``. Symmetric (up to
+        rounding) when ``XB`` is ``XA``: the allowed set is symmetric and closed under inverses.
+
+    Notes
+    -----
+    48 matrix products: O(48 N M R^3) time, O(N M) memory.
+    """
+    GA, SA, R = _split(XA)
+    GB, SB, RB = (GA, SA, R) if XB is None else _split(XB)
+    if RB != R:
+        raise InvalidOptionError(f"pcavox grids differ: {R}^3 vs {RB}^3 cells")
+    axes, cells = _symmetries(R)
+
+    def near(S, i, j):  # (n,) bool: axes i < j near-degenerate
+        return S[:, j] > degenerate * S[:, i]
+
+    na = (GA * GA).sum(axis=1)
+    nb = (GB * GB).sum(axis=1)
+    D = np.full((len(GA), len(GB)), np.inf)
+    for p, perm in zip(axes, cells, strict=True):
+        ok = np.ones(D.shape, dtype=bool)
+        for i in range(3):
+            if p[i] != i:
+                a, b = sorted((i, int(p[i])))
+                ok &= near(SA, a, b)[:, None] | near(SB, a, b)[None, :]
+        if not ok.any():
+            continue
+        d2 = na[:, None] + nb[None, :] - 2.0 * GA @ GB[:, perm].T
+        D = np.where(ok, np.minimum(D, d2), D)
+    return np.sqrt(np.maximum(D, 0.0))
