@@ -29,6 +29,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("knn", "geoshape.bench.knn"),
     ("reliability", "geoshape.bench.reliability"),
     ("rerank", "geoshape.bench.rerank"),
+    ("mirror2d", "geoshape.bench.mirror2d"),
     ("speed2d", "geoshape.bench.speed2d"),
     ("decimate", "geoshape.bench.decimate"),
     ("mlx", "geoshape.bench.mlx"),

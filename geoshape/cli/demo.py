@@ -21,7 +21,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--method", default="default",
-                   help="2D method: default, gsc, shape_context, idsc, curvature_map")
+                   help="2D method: default, default_nomirror, gsc, shape_context, idsc, curvature_map")
     p.add_argument("--per-class", type=POSITIVE_INT, default=4, help="poses per class (default 4)")
     p.add_argument("--seed", type=SEED, default=0, help="generator seed (default 0)")
     p.add_argument("--no-3d", action="store_true", help="skip the 3D correspondence part")

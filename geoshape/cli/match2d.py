@@ -5,7 +5,7 @@ from __future__ import annotations
 from geoshape.cli._common import CONTOUR_POINTS, RangeType
 from geoshape.io.outputs import declare_outputs
 
-METHOD_HELP = "matching method: default, gsc, shape_context, idsc, curvature_map"
+METHOD_HELP = "matching method: default, default_nomirror, gsc, shape_context, idsc, curvature_map"
 #: --lines: matches joined by a line in the --plot picture (up to the largest --n-points).
 MATCH_LINES = RangeType(int, 0, 4000)
 

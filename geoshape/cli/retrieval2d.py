@@ -19,7 +19,9 @@ def register(subparsers) -> None:
     p.add_argument("folder", metavar="DIR",
                    help="folder with images (each at most 50,000,000 pixels) and labels.csv")
     p.add_argument("--method", default="default",
-                   help="default, gsc, shape_context, idsc, curvature_map")
+                   help="default (both orientations: a shape and its mirror image match), "
+                   "default_nomirror (direct orientation only), gsc, shape_context, idsc, "
+                   "curvature_map")
     p.add_argument("--rerank", default=None, metavar="NAME",
                    help="re-rank the matrix over the whole collection (unsupervised): lcdp "
                    "(locally constrained diffusion); default none")

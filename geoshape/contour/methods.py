@@ -11,10 +11,17 @@ name           descriptor                               point cost   matcher
 ``shape_context`` shape context 5×12, tangent-relative  χ²           Hungarian
 ``idsc``       inner-distance shape context 8×12        Hellinger    cyclic DP
 ``curvature_map`` sampled curvature map                 squared L2   best match
-``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP
-               ½ shape context + 0.005 geodesic shape   squared L2
-               context (weighted concatenation)
+``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP, both
+               ½ shape context + 0.005 geodesic shape   squared L2   orientations (mirror
+               context (weighted concatenation)                      images)
+``default_nomirror`` the same, direct orientation only (the previous default)
 ============== ======================================== ============ ===========================
+
+A silhouette and its reflection are the same shape for retrieval: ``default`` matches each
+shape against the other one and against its mirror image and keeps the better (option
+``mirror``; ``mirror=False`` in the API, ``--method default_nomirror`` on the command line
+turn it off). Chosen by ``geoshape bench mirror2d`` (docs/RESULTS.md, "2D mirror-aware
+matching").
 
 Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
 an embedding ``X (N, K)`` in which the point cost is a squared Euclidean distance (histograms
@@ -93,15 +100,25 @@ POINT_DESCRIPTORS = {
 #: How a descriptor enters the embedding: ``raw`` as is, ``hist`` as sqrt(h/2) (Hellinger).
 _TRANSFORMS = ("raw", "hist")
 
+_DEFAULT_PARTS = (("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist", {}),
+                  ("gsc", 0.005, "raw", {}))
+
 #: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
-#: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image.
+#: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image (the
+#: cyclic DP then tries ``n_starts`` starts per orientation: the best ``2·n_starts`` over both).
 CONTOUR_METHODS: dict[str, dict] = {
     "default": dict(
-        parts=(("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist", {}),
-               ("gsc", 0.005, "raw", {})),
+        parts=_DEFAULT_PARTS,
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
+        mirror=True,
+        summary="inner-distance SC 5x12 + 0.5 shape context + 0.005 geodesic SC, cyclic DP, "
+        "mirror images too",
+    ),
+    "default_nomirror": dict(
+        parts=_DEFAULT_PARTS,
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
         mirror=False,
-        summary="inner-distance SC 5x12 + 0.5 shape context + 0.005 geodesic SC, cyclic DP",
+        summary="the default without mirror images (its previous default)",
     ),
     "gsc": dict(
         parts=(("gsc", 1.0, "raw", dict(threshold="hysteresis", bins="thesis", window=4)),),
@@ -265,7 +282,9 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
 
     ``sigs2``: a list of signatures or a :class:`SignatureStack` of them. With ``mirror``
     the distance is the smaller of the costs against each shape and against its mirror
-    image. Shapes in ``sigs2`` must have equal point counts (they are stacked).
+    image; for the ``dp`` matcher ``n_starts`` is then per orientation (the best
+    ``2·n_starts`` starts ranked over both orientations together). Shapes in ``sigs2`` must
+    have equal point counts (they are stacked).
 
     For the ``dp`` matcher with the squared-Euclidean cost the cost matrices are never
     stored: the compiled matcher builds each from the matrix product
@@ -275,11 +294,11 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
         return np.zeros(0)
     stack = sigs2 if isinstance(sigs2, SignatureStack) else stack_signatures(list(sigs2))
     X2, s2 = stack.X, stack.s
+    opts = _variant_options(spec)
     if spec["matcher"] == "dp" and spec["metric"] == "sqeuclidean":
         variants = [X2, stack.X_mirror] if spec["mirror"] else [X2]
         parts = [_gram_parts(sig1.X, Xv, stack.sq_norms[:, v]) for v, Xv in enumerate(variants)]
         G = np.stack([p[2] for p in parts], axis=1) if spec["mirror"] else parts[0][2][:, None]
-        opts = spec["matcher_options"]
         return cyclic_dp_gram_costs(G, parts[0][0], stack.sq_norms[:, :len(variants)],
                                     skip_cost=opts.get("skip_cost", 0.3),
                                     n_starts=opts.get("n_starts", 4))
@@ -291,7 +310,16 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
         # Mirror point i is the reflection of point -i, so its arc-length position is 1 - s.
         s2m = np.mod(1.0 - np.roll(s2[:, ::-1], 1, axis=1), 1.0)
         s2 = np.stack([s2, s2m], axis=1)
-    return batch_match_costs(C, spec["matcher"], s1=s1, s2=s2, **spec["matcher_options"])
+    return batch_match_costs(C, spec["matcher"], s1=s1, s2=s2, **opts)
+
+
+def _variant_options(spec: dict) -> dict:
+    """Matcher options for all variants of a pair at once: ``n_starts`` is per orientation,
+    so with ``mirror`` the DP tries the best ``2 · n_starts`` starts over both orientations."""
+    opts = dict(spec["matcher_options"])
+    if spec["mirror"] and spec["matcher"] == "dp":
+        opts["n_starts"] = 2 * opts.get("n_starts", 4)
+    return opts
 
 
 def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.ndarray, float]:
