@@ -15,7 +15,7 @@ from geoshape.retrieval.descriptors.pcavox import (
     _symmetries,
     pcavox_descriptor,
     pcavox_distance_matrix,
-    principal_frame,
+    scaled_principal_axes,
 )
 
 
@@ -134,7 +134,7 @@ def test_axis_swaps_only_for_near_equal_spreads():
     signs_only = pcavox_distance_matrix(X, degenerate=1.0)[0, 1]
     assert everything <= restricted <= signs_only
     # the plate's two long axes are near-equal: a swap is allowed for that pair
-    _, spreads = principal_frame(plate.sample(5000, seed=0))
+    _, spreads = scaled_principal_axes(plate.sample(5000, seed=0))
     assert spreads[1] > 0.8
 
 

@@ -926,19 +926,7 @@ class ShapeIndex:
         elif vs is None:
             paths, X = self.load(descriptor, params)
             d = descriptor_distances(descriptor, [q], list(X) if X.dtype == object else X)[0]
-            m = len(paths)
-            k = min(m, want)
-            cand = _nearest_first(d, k)
-            if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
-                while True:
-                    present = [i for i in cand if not _is_gone(paths[i])]
-                    if len(present) >= k or len(cand) == m:
-                        break
-                    cand = _nearest_first(d, min(m, 2 * len(cand) + k))
-                if not present:
-                    raise DatasetError(f"{self.path}: none of the stored files exists any more "
-                                       "(run 'geoshape index prune')")
-                cand = np.asarray(present[:k], dtype=np.int64)
+            cand = _existing_nearest(d, paths, want, skip_missing, self.path)
             short = [(paths[i], float(d[i])) for i in cand]
             rows = [X[i] for i in cand]
         else:
@@ -1019,19 +1007,7 @@ class ShapeIndex:
             Xc = [X[where[p]] for p in common]
             mats[c] = descriptor_distances(c, [q[c]], Xc if X.dtype == object else np.asarray(Xc))
         d = fuse_distances(mats, weights, all_pairs=False)[0] if len(common) > 1 else np.zeros(1)
-        m = len(common)
-        k = min(m, want)
-        cand = _nearest_first(d, k)
-        if skip_missing:  # stat only the candidates, widening the shortlist past deleted files
-            while True:
-                present = [i for i in cand if not _is_gone(common[i])]
-                if len(present) >= k or len(cand) == m:
-                    break
-                cand = _nearest_first(d, min(m, 2 * len(cand) + k))
-            if not present:
-                raise DatasetError(f"{self.path}: none of the stored files exists any more "
-                                   "(run 'geoshape index prune')")
-            cand = np.asarray(present[:k], dtype=np.int64)
+        cand = _existing_nearest(d, common, want, skip_missing, self.path)
         short = [(common[i], float(d[i])) for i in cand]
         rows = [{c: stored[c][1][stored[c][0][common[i]]] for c in weights} for i in cand]
         return short, rows
@@ -1212,6 +1188,26 @@ def _split_inputs(inputs, names, report: AddReport) -> tuple[list, list[_MemoryM
             raise InvalidOptionError(f"mesh name {key!r} is given twice")
         meshes[key] = _MemoryMesh(key, sha, V, F)
     return paths, list(meshes.values())
+
+
+def _existing_nearest(d: np.ndarray, paths, want: int, skip_missing: bool, index_path) -> np.ndarray:
+    """Positions of the ``want`` smallest of ``d`` (nearest first); with ``skip_missing`` only
+    of files that still exist, statting only the candidates and widening the shortlist past
+    deleted files. Raises :class:`DatasetError` when none exists. O(m + k log k) per round."""
+    m = len(paths)
+    k = min(m, want)
+    cand = _nearest_first(d, k)
+    if not skip_missing:
+        return cand
+    while True:
+        present = [i for i in cand if not _is_gone(paths[i])]
+        if len(present) >= k or len(cand) == m:
+            break
+        cand = _nearest_first(d, min(m, 2 * len(cand) + k))
+    if not present:
+        raise DatasetError(f"{index_path}: none of the stored files exists any more "
+                           "(run 'geoshape index prune')")
+    return np.asarray(present[:k], dtype=np.int64)
 
 
 def _nearest_first(d: np.ndarray, k: int) -> np.ndarray:

@@ -45,7 +45,7 @@ __all__ = [
     "PCAVOX_POINTS",
     "PCAVOX_SIGMA",
     "PCAVOX_DEGENERATE",
-    "principal_frame",
+    "scaled_principal_axes",
     "pcavox_descriptor",
     "pcavox_distance_matrix",
 ]
@@ -60,7 +60,7 @@ PCAVOX_SIGMA = 0.7
 PCAVOX_DEGENERATE = 0.8
 
 
-def principal_frame(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scaled_principal_axes(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points in their principal frame, each axis scaled to ``[-1, 1]``.
 
     Parameters
@@ -141,7 +141,7 @@ def pcavox_descriptor(V, F, *, resolution: int = PCAVOX_RESOLUTION, n_points: in
     if resolution < 2 or n_points < 1 or sigma < 0:
         raise InvalidOptionError(f"pcavox needs resolution >= 2, n_points >= 1, sigma >= 0; got "
                                  f"{resolution}, {n_points}, {sigma}")
-    Y, spreads = principal_frame(surface_samples(V, F, n_points, seed))
+    Y, spreads = scaled_principal_axes(surface_samples(V, F, n_points, seed))
     idx = np.minimum(((Y + 1.0) * 0.5 * resolution).astype(np.int64), resolution - 1)
     G = np.bincount((idx[:, 0] * resolution + idx[:, 1]) * resolution + idx[:, 2],
                     minlength=resolution**3).astype(np.float64).reshape((resolution,) * 3)
