@@ -144,6 +144,28 @@ def test_pair_costs_equal_cost_matrices_then_dp(silhouette_contours, mirror):
         assert np.array_equal(pair_costs(sig, sigs, spec), ref)
 
 
+@pytest.mark.parametrize("mirror", [False, True])
+def test_pair_costs_chunks_and_stack_views(mirror):
+    """The Gram matrices are made by chunks of pairs into a reused buffer; stacks of any size,
+    their tails and one-signature stacks give the same bits, and ``X``/``X_mirror`` are the
+    orientations of the stacked ``XV``."""
+    from geoshape.contour import methods
+
+    spec = method_spec("default", mirror=mirror)
+    n = 2 * methods._GRAM_CHUNK + 3
+    sigs = [contour_signature(wobbly_contour(40, seed), spec=spec) for seed in range(n)]
+    stack = stack_signatures(sigs)
+    assert stack.XV.shape == (len(sigs), 2 if mirror else 1, 40, sigs[0].X.shape[1])
+    for b, sig in enumerate(sigs):
+        assert np.array_equal(stack.X[b], sig.X)
+        assert (stack.X_mirror is None) if not mirror else np.array_equal(stack.X_mirror[b], sig.X_mirror)
+    for sig in sigs[:3]:
+        full = pair_costs(sig, stack, spec)
+        single = np.concatenate([pair_costs(sig, stack_signatures([s]), spec) for s in sigs])
+        assert np.array_equal(full, single)
+        assert np.array_equal(pair_costs(sig, stack.tail(5), spec), full[5:])
+
+
 def test_gram_costs_reject_bad_options():
     from geoshape.errors import InvalidOptionError
 

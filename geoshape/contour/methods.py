@@ -251,14 +251,17 @@ def signature_cost_matrices(X1: np.ndarray, X2s: np.ndarray, metric: str) -> np.
 class SignatureStack:
     """Signatures of equal point counts stacked for batched matching (see :func:`stack_signatures`).
 
-    ``X (B, M, K)``, ``s (B, M)``, ``X_mirror (B, M, K)`` or ``None``; ``sq_norms (B, V, M)``:
-    squared row norms of ``X`` (and of ``X_mirror``: ``V = 2``).
+    ``XV (B, V, M, K)``: the embeddings of each shape (``V = 1``) and of its mirror image
+    (``V = 2``), stacked once so that one matrix product per query gives the Gram matrices of
+    both orientations; ``X (B, M, K)`` and ``X_mirror (B, M, K)`` (or ``None``) are views of it;
+    ``s (B, M)``; ``sq_norms (B, V, M)``: squared row norms of ``XV``.
     """
 
     X: np.ndarray
     s: np.ndarray
     X_mirror: np.ndarray | None
     sq_norms: np.ndarray
+    XV: np.ndarray
 
     def __len__(self) -> int:
         return len(self.X)
@@ -266,15 +269,22 @@ class SignatureStack:
     def tail(self, first: int) -> SignatureStack:
         """The signatures from ``first`` on (views)."""
         mirror = None if self.X_mirror is None else self.X_mirror[first:]
-        return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:])
+        return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:],
+                              self.XV[first:])
 
 
 def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
     """Stack signatures once, to match many queries against them. O(B·M·K)."""
-    X = np.stack([s.X for s in sigs])
-    Xm = np.stack([s.X_mirror for s in sigs]) if sigs[0].X_mirror is not None else None
-    norms = np.stack([(Xv**2).sum(axis=2) for Xv in (X, Xm) if Xv is not None], axis=1)
-    return SignatureStack(X, np.stack([s.s for s in sigs]), Xm, norms)
+    mirror = sigs[0].X_mirror is not None
+    V = 2 if mirror else 1
+    XV = np.empty((len(sigs), V, *sigs[0].X.shape))
+    for b, sig in enumerate(sigs):
+        XV[b, 0] = sig.X
+        if mirror:
+            XV[b, 1] = sig.X_mirror
+    norms = (XV**2).sum(axis=3)
+    return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
+                          norms, XV)
 
 
 def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
@@ -296,12 +306,7 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
     X2, s2 = stack.X, stack.s
     opts = _variant_options(spec)
     if spec["matcher"] == "dp" and spec["metric"] == "sqeuclidean":
-        variants = [X2, stack.X_mirror] if spec["mirror"] else [X2]
-        parts = [_gram_parts(sig1.X, Xv, stack.sq_norms[:, v]) for v, Xv in enumerate(variants)]
-        G = np.stack([p[2] for p in parts], axis=1) if spec["mirror"] else parts[0][2][:, None]
-        return cyclic_dp_gram_costs(G, parts[0][0], stack.sq_norms[:, :len(variants)],
-                                    skip_cost=opts.get("skip_cost", 0.3),
-                                    n_starts=opts.get("n_starts", 4))
+        return _dp_pair_costs(sig1.X, stack, opts)
     s1 = np.broadcast_to(sig1.s, (len(stack), len(sig1.s)))
     C = signature_cost_matrices(sig1.X, X2, spec["metric"])
     if spec["mirror"]:
@@ -311,6 +316,32 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
         s2m = np.mod(1.0 - np.roll(s2[:, ::-1], 1, axis=1), 1.0)
         s2 = np.stack([s2, s2m], axis=1)
     return batch_match_costs(C, spec["matcher"], s1=s1, s2=s2, **opts)
+
+
+#: Pairs whose Gram matrices are made and matched at a time (they stay in the cache).
+_GRAM_CHUNK = 16
+
+
+def _dp_pair_costs(X1: np.ndarray, stack: SignatureStack, opts: dict) -> np.ndarray:
+    """:func:`pair_costs` for the ``dp`` matcher with the squared-Euclidean cost.
+
+    The Gram matrices of all orientations come from one product per chunk of
+    ``_GRAM_CHUNK`` pairs into a reused buffer (each pair's is the same product as
+    :func:`_gram_parts`, so the same bits), and are matched while still in the cache.
+    """
+    XV, n2 = stack.XV, stack.sq_norms
+    B, V, M, _ = XV.shape
+    n1 = (X1**2).sum(axis=1)
+    X1T = np.ascontiguousarray(X1.T)
+    buf = np.empty((min(B, _GRAM_CHUNK), V, M, len(X1)))
+    out = np.empty(B)
+    for c in range(0, B, _GRAM_CHUNK):
+        G = buf[:min(_GRAM_CHUNK, B - c)]
+        np.matmul(XV[c:c + _GRAM_CHUNK], X1T, out=G)
+        out[c:c + len(G)] = cyclic_dp_gram_costs(G, n1, n2[c:c + _GRAM_CHUNK],
+                                                 skip_cost=opts.get("skip_cost", 0.3),
+                                                 n_starts=opts.get("n_starts", 4))
+    return out
 
 
 def _variant_options(spec: dict) -> dict:
