@@ -478,12 +478,17 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
     """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
     distances divided by their median, so uniform scale does not count). Each of ``images``
     gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Graph Dijkstra
-    runs once from ``rows1`` and once from the distinct images of all maps:
+    runs once from ``rows1`` (cached on mesh 1) and once from the distinct images of all maps:
     O((s + u) n log n) for s rows and u distinct images.
     """
     rows1 = np.asarray(rows1, dtype=np.int64)
-    D1 = m1.solver("graph").distances(rows1)[:, rows1]
-    D1 = D1 / max(float(np.median(D1)), 1e-300)
+
+    def normalised_rows1():
+        D = m1.solver("graph").distances(rows1)[:, rows1]
+        return D / max(float(np.median(D)), 1e-300)
+
+    # cached per mesh and rows: a symmetry completion measures again on the same rows
+    D1 = m1.cached(("distortion_rows", rows1.tobytes()), normalised_rows1)
     targets = [np.asarray(t, dtype=np.int64) for t in images]
     if not targets:
         return []
