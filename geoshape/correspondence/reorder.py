@@ -5,7 +5,7 @@ mesh 2's columns (``B' = B[:, perm] * signs``) minimising the best-match cost
 ``cost = Σ_i min_j ‖A_i − B'_j‖`` (thesis §4.2.5–4.2.6). Three searches:
 
 - ``exhaustive``: all ``k! 2^k`` signed permutations (3840 for k = 5, 46080 for k = 6),
-  vectorised per permutation over the ``2^k`` sign vectors with one BLAS product;
+  per permutation one compiled pass over the point pairs for all ``2^k`` sign vectors;
 - ``greedy``: exhaustive on the first two columns, then each further column of ``A`` takes
   the best remaining column of ``B`` and sign — O(k^2) cost evaluations;
 - ``pairwise``: swap consecutive columns on absolute values while the cost drops, then
@@ -50,14 +50,17 @@ def best_match_cost(A: np.ndarray, B: np.ndarray) -> float:
 
 
 def _costs_all_signs(A: np.ndarray, Bp: np.ndarray, sign_table: np.ndarray) -> np.ndarray:
-    """Best-match costs for every sign vector (rows of ``sign_table``) at once."""
-    k = A.shape[1]
-    n1, n2 = len(A), len(Bp)
-    # products[c] = outer(A[:, c], Bp[:, c]); cross(s) = Σ_c s_c products[c]
-    products = (A.T[:, :, None] * Bp.T[:, None, :]).reshape(k, n1 * n2)
-    cross = (sign_table @ products).reshape(len(sign_table), n1, n2)
-    d2 = (A * A).sum(1)[None, :, None] + (Bp * Bp).sum(1)[None, None, :] - 2.0 * cross
-    return np.sqrt(np.maximum(d2.min(axis=2), 0.0)).sum(axis=1)
+    """Best-match costs for every sign vector (rows of ``sign_table``) at once.
+
+    ``sign_table`` is ``itertools.product((1, -1), repeat=k)``: its second half is the
+    first half negated, in reverse order, and a sign vector and its negation share the
+    products ``A_ic Bp_jc`` — the compiled kernel makes one pass for both.
+    """
+    from geoshape.geometry._kernels import signed_match_costs
+
+    h = len(sign_table) // 2
+    costs = signed_match_costs(np.ascontiguousarray(A), np.ascontiguousarray(Bp), sign_table[:h])
+    return np.concatenate([costs[:h], costs[h:][::-1]])
 
 
 def _exhaustive(A, B, n_keep):

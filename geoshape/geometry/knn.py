@@ -9,10 +9,11 @@
 
 Low dimensions (``d <=`` :data:`KD_TREE_MAX_DIM`) use a KD-tree. In higher dimensions,
 where KD-trees degrade to brute force anyway, :func:`nearest` uses blocked BLAS distance
-computations: ``|y|² - 2 x·y`` in blocks of queries, O(q n d) time, O(block n) memory. The
-block products run in single precision (twice the BLAS speed, half the memory traffic; the
-nearest point changes only between near-ties); the returned distances are recomputed in
-double precision. :func:`k_nearest` uses the KD-tree in every dimension.
+computations: the largest ``x·y − |y|²/2`` (one product with a lifted column) in blocks of
+queries, O(q n d) time, O(block n) memory. The block products run in single precision
+(twice the BLAS speed, half the memory traffic; the nearest point changes only between
+near-ties); the returned distances are recomputed in double precision. :func:`k_nearest`
+uses the KD-tree in every dimension.
 
 Backends of the KD-tree (:data:`BACKENDS`): ``scipy`` (``cKDTree``, always available, any
 dimension) and ``open3d`` (``open3d.core.nns.NearestNeighborSearch``, when the ``open3d``
@@ -147,14 +148,18 @@ def nearest(points: np.ndarray, queries: np.ndarray, *, backend: str = "auto",
     queries = np.ascontiguousarray(queries, dtype=np.float64)
     if points.shape[1] <= KD_TREE_MAX_DIM:
         return KNNIndex(points, backend).query(queries, k=1)
-    points32 = points.astype(np.float32)
-    sq_p = np.einsum("ij,ij->i", points32, points32)
+    # argmin |x − y|² = argmax (x·y − |y|²/2): one product with an extra column, one pass
+    n, d = points.shape
+    lifted = np.empty((n, d + 1), np.float32)
+    lifted[:, :d] = points
+    lifted[:, d] = -0.5 * np.einsum("ij,ij->i", points, points)
+    lifted_t = np.ascontiguousarray(lifted.T)
+    q32 = np.ones((min(block, len(queries)), d + 1), np.float32)
     idx = np.empty(len(queries), np.int64)
     for s in range(0, len(queries), block):
-        d2 = queries[s : s + block].astype(np.float32) @ points32.T
-        d2 *= -2.0
-        d2 += sq_p[None, :]
-        idx[s : s + block] = d2.argmin(axis=1)
+        b = min(block, len(queries) - s)
+        q32[:b, :d] = queries[s : s + b]
+        idx[s : s + b] = (q32[:b] @ lifted_t).argmax(axis=1)
     dist = np.linalg.norm(queries - points[idx], axis=1)
     return dist, idx
 

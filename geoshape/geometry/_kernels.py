@@ -1,0 +1,91 @@
+"""Compiled (numba) kernels of the point-set primitives: farthest-point sampling in
+Euclidean space (:func:`geoshape.geometry.sampling.euclidean_farthest_point_sampling`) and
+the best-match costs of every sign vector of one column order
+(:mod:`geoshape.correspondence.reorder`).
+
+Imported lazily (numba takes a moment to import; machine code is cached in
+``__pycache__``). Each kernel fuses what NumPy does in several passes over temporaries
+into one loop, so it runs in cache: the arithmetic is the same up to the order of a few
+additions (a near-tie may break the other way).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def farthest_point_order(X, first, n_samples):
+    """Max-min order of the rows of ``X (m, k)`` starting at row ``first``: ``n_samples``
+    indices, each next the row farthest from all chosen (first of equals on ties).
+
+    O(m · n_samples · k) time, O(m) memory.
+    """
+    m, k = X.shape
+    d = np.full(m, np.inf)
+    out = np.empty(n_samples, np.int64)
+    j = first
+    for a in range(n_samples):
+        out[a] = j
+        best, nxt = -1.0, 0
+        for i in range(m):
+            s = 0.0
+            for c in range(k):
+                t = X[i, c] - X[j, c]
+                s += t * t
+            if s < d[i]:
+                d[i] = s
+            if d[i] > best:
+                best, nxt = d[i], i
+        j = nxt
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def signed_match_costs(A, Bp, half_signs):
+    """``Σ_i min_j ‖A_i − s ∘ Bp_j‖`` for every sign vector ``s`` of ``half_signs (h, k)`` and
+    its negation: ``(2h,)``, the costs of ``half_signs`` then of ``−half_signs``.
+
+    A sign vector and its negation share the products ``A_ic Bp_jc``: one pass over the
+    ``(i, j)`` pairs gives both. O(n1 n2 h k) time, O(n1 h) memory.
+    """
+    n1, k = A.shape
+    n2 = Bp.shape[0]
+    h = half_signs.shape[0]
+    a2 = np.empty(n1)
+    for i in range(n1):
+        s = 0.0
+        for c in range(k):
+            s += A[i, c] * A[i, c]
+        a2[i] = s
+    b2 = np.empty(n2)
+    for j in range(n2):
+        s = 0.0
+        for c in range(k):
+            s += Bp[j, c] * Bp[j, c]
+        b2[j] = s
+    best = np.full((2 * h, n1), np.inf)
+    prod = np.empty(k)
+    for i in range(n1):
+        for j in range(n2):
+            base = a2[i] + b2[j]
+            for c in range(k):
+                prod[c] = A[i, c] * Bp[j, c]
+            for t in range(h):
+                cross = 0.0
+                for c in range(k):
+                    cross += half_signs[t, c] * prod[c]
+                plus = base - 2.0 * cross
+                minus = base + 2.0 * cross
+                if plus < best[t, i]:
+                    best[t, i] = plus
+                if minus < best[h + t, i]:
+                    best[h + t, i] = minus
+    out = np.zeros(2 * h)
+    for t in range(2 * h):
+        s = 0.0
+        for i in range(n1):
+            s += np.sqrt(max(best[t, i], 0.0))
+        out[t] = s
+    return out
