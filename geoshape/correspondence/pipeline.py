@@ -551,7 +551,12 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     spatial candidates around the current image above ``BRUTE_FORCE_MAX`` target vertices.
     In large-mesh mode each vertex starts from its nearest sample's image.
     """
-    from geoshape.correspondence.fmaps.zoomout import full_resolution_map, functional_map_from_p2p
+    from geoshape.correspondence.fmaps.zoomout import (
+        BRUTE_FORCE_MAX,
+        full_resolution_map,
+        functional_map_from_p2p,
+        spatial_neighbours,
+    )
 
     t = time.perf_counter()
     b1, b2, lb_k, coarse = ctx.b1, ctx.b2, ctx.lb_k, chosen.refined_map
@@ -568,8 +573,12 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
         ks = list(range(lb_k + options.final_step, ctx.final_k + 1, options.final_step))
         if not ks or ks[-1] != ctx.final_k:
             ks.append(ctx.final_k)
+        near = None
+        if ctx.m2.n > BRUTE_FORCE_MAX:  # each step searches around the last image: one table
+            near = ctx.m2.cached(("spatial_neighbours", 64), lambda: spatial_neighbours(ctx.m2.V, 64))
         for k in ks:
-            p2p = full_resolution_map(B1, B2, functional_map_from_p2p(B1, B2, p2p, k, k), p2p, ctx.m2.V)
+            p2p = full_resolution_map(B1, B2, functional_map_from_p2p(B1, B2, p2p, k, k), p2p, ctx.m2.V,
+                                      neighbours=near)
         timings["final_zoomout"] = time.perf_counter() - t
     return p2p
 

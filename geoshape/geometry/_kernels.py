@@ -89,3 +89,27 @@ def signed_match_costs(A, Bp, half_signs):
             s += np.sqrt(max(best[t, i], 0.0))
         out[t] = s
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def nearest_among_candidates(queries, points, candidates):
+    """For each row ``i`` of ``queries (q, k)``, the entry of ``candidates[i] (q, c)`` whose
+    row of ``points (n, k)`` is nearest (the first of equals): ``(q,)`` int64.
+
+    O(q c k) time, no temporaries (NumPy would gather a ``(q, c, k)`` block first).
+    """
+    q, k = queries.shape
+    c = candidates.shape[1]
+    out = np.empty(q, np.int64)
+    for i in range(q):
+        best, arg = np.inf, candidates[i, 0]
+        for t in range(c):
+            j = candidates[i, t]
+            s = 0.0
+            for a in range(k):
+                d = points[j, a] - queries[i, a]
+                s += d * d
+            if s < best:
+                best, arg = s, j
+        out[i] = arg
+    return out

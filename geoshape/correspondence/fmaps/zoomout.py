@@ -144,7 +144,7 @@ BRUTE_FORCE_MAX = 8000
 
 def full_resolution_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
                         coarse_12: np.ndarray, V2: np.ndarray, *, n_candidates: int = 64,
-                        block: int = 2048) -> np.ndarray:
+                        neighbours: np.ndarray | None = None) -> np.ndarray:
     """Map every vertex of mesh 1 to every candidate vertex of mesh 2 through ``C_21``.
 
     For target meshes up to :data:`BRUTE_FORCE_MAX` vertices this is the plain nearest
@@ -152,17 +152,28 @@ def full_resolution_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np
     (:func:`p2p_from_functional_map`): O(n1 n2 k). Above, each
     vertex ``i`` only considers the ``n_candidates`` vertices of mesh 2 nearest in space
     to its coarse image ``coarse_12[i]`` (e.g. a map onto a few thousand samples): O(n1 c k),
-    which turns minutes into a second at 25k vertices. Memory O(block c k).
+    which turns minutes into a second at 25k vertices. ``neighbours`` may pass the table of
+    every mesh-2 vertex's spatial neighbours, ``(n2, c)`` (:func:`spatial_neighbours`), when
+    the map is refined several times; otherwise they are searched for the distinct coarse
+    images, O(u log n2).
     """
     if len(V2) <= BRUTE_FORCE_MAX:
         return p2p_from_functional_map(basis1, basis2, C_21)
+    from geoshape.geometry._kernels import nearest_among_candidates
+
     E1, E2 = aligned_bases(basis1, basis2, C_21)
     coarse = np.asarray(coarse_12, dtype=np.int64)
-    uniq, inverse = np.unique(coarse, return_inverse=True)
-    _, near = k_nearest(V2, V2[uniq], n_candidates)  # (u, c), c = min(n_candidates, n2)
-    out = np.empty(len(E1), np.int64)
-    for s in range(0, len(E1), block):
-        cand = near[inverse[s : s + block]]  # (b, c)
-        d2 = ((E2[cand] - E1[s : s + block, None, :]) ** 2).sum(axis=2)
-        out[s : s + block] = cand[np.arange(len(cand)), d2.argmin(axis=1)]
-    return out
+    if neighbours is None:
+        uniq, inverse = np.unique(coarse, return_inverse=True)
+        cand = spatial_neighbours(V2, n_candidates, rows=uniq)[inverse]
+    else:
+        cand = neighbours[coarse]
+    return nearest_among_candidates(np.ascontiguousarray(E1), np.ascontiguousarray(E2),
+                                    np.ascontiguousarray(cand))
+
+
+def spatial_neighbours(V: np.ndarray, n_candidates: int = 64, rows: np.ndarray | None = None) -> np.ndarray:
+    """The ``min(n_candidates, n)`` vertices nearest in space to each vertex of ``rows``
+    (default: every vertex), nearest first: ``(len(rows), c)`` int64. KD-tree, O(r c log n)."""
+    V = np.asarray(V, dtype=np.float64)
+    return k_nearest(V, V if rows is None else V[rows], n_candidates)[1]
