@@ -3,8 +3,12 @@
 The collection is Tari-1000 followed by perturbed copies of randomly chosen Tari-1000 shapes
 (``geoshape gen perturb2d`` kinds in turn: mirror, noise, notch, erode; seeded), so the first
 1000 shapes are Tari-1000 itself. For each size: descriptors (all shapes, processes on all
-cores), the all-pairs matrix of the ``default`` method (processes), and re-ranking (``lcdp``,
-one process), each timed by the wall clock. Image reading and perturbing are not timed.
+cores), the all-pairs matrix of the ``default`` method (processes; ``--search``, by default
+the library's ``auto``: coarse-to-fine at these sizes), and re-ranking (``lcdp``, one process),
+each timed by the wall clock. Image reading and perturbing are not timed. With ``--reference``
+(an exact Tari-1000 matrix of the same method) the 1000-shape matrix is compared with it:
+retrieval scores of both, plain and re-ranked, and how many of each query's exact first ranks
+the coarse-to-fine search matched exactly.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--reference", default=None,
                         help="a saved Tari-1000 default matrix (.npy) the 1000-shape matrix is "
                         "compared with (identical / largest difference)")
+    parser.add_argument("--search", default="auto", choices=("auto", "exact", "coarse_to_fine"),
+                        help="all-pairs search of shape_distance_matrix (default auto)")
     parser.add_argument("--no-write", action="store_true", help="print only")
 
 
@@ -55,6 +61,41 @@ def _cpu_seconds() -> float:
                for f in ("ru_utime", "ru_stime"))
 
 
+def _scores(D, R, labels) -> str:
+    from geoshape.metrics.retrieval import retrieval_metrics
+
+    m, r = retrieval_metrics(D, labels), retrieval_metrics(R, labels)
+    return (f"bull's-eye {m['bulls_eye']:.2f} %, top-10 total {m['top_k_total']}/{m['top_k_max']}, "
+            f"mAP {m['map']:.4f}; re-ranked {r['bulls_eye']:.2f} %, {r['top_k_total']}, {r['map']:.4f}")
+
+
+def _compare(ref, D, labels, path) -> str:
+    """How the matrix compares with an exact reference matrix of the same shapes."""
+    import os
+
+    import numpy as np
+
+    from geoshape.retrieval.rerank import rerank
+
+    name = os.path.basename(path)
+    if ref.shape != D.shape:
+        return f"The reference matrix `{name}` has shape {ref.shape}, not {D.shape}: not compared."
+    if np.array_equal(ref, D):
+        return f"Against the exact reference matrix `{name}`: identical."
+    n = len(D)
+    exact = ref == D
+    off = ~np.eye(n, dtype=bool)
+    parts = [f"Against the exact reference matrix `{name}` ({_scores(ref, rerank(ref), labels)}): "
+             f"{(exact & off).sum() / off.sum():.1%} of the off-diagonal entries are the exact "
+             f"distances (the rest rank after them); share of each query's exact first t ranks "
+             f"that are exact here (mean / worst query):"]
+    order = np.argsort(np.where(off, ref, np.inf), axis=1, kind="stable")
+    for t in (10, 20, 40):
+        kept = exact[np.arange(n)[:, None], order[:, :t]].mean(axis=1)
+        parts.append(f"t = {t}: {kept.mean():.4f} / {kept.min():.2f};")
+    return " ".join(parts)[:-1] + "."
+
+
 def run(args) -> int:
     import os
     import platform
@@ -63,8 +104,7 @@ def run(args) -> int:
     import numpy as np
 
     from geoshape.bench.results import markdown_table, update_results_section
-    from geoshape.contour.retrieval import contour_signatures, shape_distance_matrix
-    from geoshape.metrics.retrieval import retrieval_metrics
+    from geoshape.contour.retrieval import REFINE_K, contour_signatures, shape_distance_matrix
     from geoshape.retrieval.rerank import rerank
 
     sizes = sorted({int(s) for s in args.sizes.split(",") if s.strip()})
@@ -77,10 +117,10 @@ def run(args) -> int:
         cpu0 = _cpu_seconds()
         t0 = time.perf_counter()
         sigs = contour_signatures(contours[:n], n_jobs=args.n_jobs)
-        t1 = time.perf_counter()
-        D = shape_distance_matrix(None, signatures=sigs, n_jobs=args.n_jobs)
-        t2 = time.perf_counter()
-        rerank(D)
+        t1, cpu1 = time.perf_counter(), _cpu_seconds()
+        D = shape_distance_matrix(None, signatures=sigs, n_jobs=args.n_jobs, search=args.search)
+        t2, cpu2 = time.perf_counter(), _cpu_seconds()
+        R = rerank(D)
         t3 = time.perf_counter()
         cpu = _cpu_seconds() - cpu0
         pairs = n * (n - 1) // 2
@@ -88,37 +128,41 @@ def run(args) -> int:
         rows.append([n, f"{pairs:,}", f"{t1 - t0:.1f}", f"{t2 - t1:.1f}",
                      f"{(t2 - t1) / pairs * 1e6:.0f}", f"{(t2 - t1) * workers / pairs * 1e6:.0f}",
                      f"{t3 - t2:.2f}", f"{total:.1f}", "yes" if total <= TARGET_SECONDS else "no",
-                     f"{cpu:.0f}", f"{cpu / workers:.0f}"])
+                     f"{cpu:.0f}", f"{cpu / workers:.0f}", f"{cpu1 - cpu0:.0f}", f"{cpu2 - cpu1:.0f}",
+                     f"{os.getloadavg()[0]:.1f}"])
         print("  " + " | ".join(str(x) for x in rows[-1]), flush=True)
         if n == 1000:
-            m = retrieval_metrics(D, labels[:n])
-            notes.append(f"The 1000-shape matrix is Tari-1000's: bull's-eye {m['bulls_eye']:.2f} %, "
-                         f"top-10 total {m['top_k_total']}/{m['top_k_max']}.")
+            notes.append(f"The 1000-shape matrix is Tari-1000's: {_scores(D, R, labels[:n])}.")
             if args.reference:
-                ref = np.load(args.reference)
-                same = ref.shape == D.shape and np.array_equal(ref, D)
-                diff = float(np.abs(ref - D).max()) if ref.shape == D.shape else float("nan")
-                notes.append(f"Against the reference matrix `{os.path.basename(args.reference)}` "
-                             f"(the NumPy implementation's): {'identical' if same else 'different'}"
-                             f", largest difference {diff:.3g}.")
+                notes.append(_compare(np.load(args.reference), D, labels[:n], args.reference))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     table = markdown_table(["shapes", "pairs", "descriptors s", "all-pairs matrix s",
                             "µs / pair (wall)", "µs / pair / worker", "re-ranking s", "total s",
-                            f"total ≤ {TARGET_SECONDS:.0f} s", "CPU s", "CPU s / workers"], rows)
+                            f"total ≤ {TARGET_SECONDS:.0f} s", "CPU s", "CPU s / workers",
+                            "descriptors CPU s", "matrix CPU s", "load"], rows)
     text = (
         "## 2D all-pairs speed (default method)\n\n"
-        f"Command: `geoshape bench speed2d --sizes {','.join(map(str, sizes))}` "
+        f"Command: `geoshape bench speed2d --sizes {','.join(map(str, sizes))}"
+        f"{'' if args.search == 'auto' else ' --search ' + args.search}"
+        f"{' --reference ' + os.path.basename(args.reference) if args.reference else ''}` "
         f"({time.strftime('%Y-%m-%d')}, {args.n_points} contour points, processes, {workers} "
         f"workers, {platform.machine()}; 2 cores shared with other jobs, 1-min load average "
-        f"{load:.1f} at the end, so the times are upper bounds). Collection: Tari-1000, then "
+        f"{load:.1f} at the end ('load': after each size), so the times are upper bounds). "
+        "Collection: Tari-1000, then "
         "perturbed copies (mirror, noise, notch, erode in turn; seed "
         f"{args.seed}) of randomly chosen Tari-1000 shapes. 'total' = descriptors + matrix + "
         "re-ranking (lcdp), image reading excluded. 'CPU s' is the user + system time of the "
         "parent and its worker processes over the same span; divided by the workers it is the "
         "wall time the run would take with its cores to itself. The matcher (cyclic DP with its start "
         "ranking) and the visibility test of the inner distance run as compiled loops (numba) "
-        "that repeat the NumPy implementation's arithmetic, so the matrix is the same to the "
-        "bit.\n\n" + table + ("\n\n" + " ".join(notes) if notes else "") + "\n"
+        "that repeat the NumPy implementation's arithmetic. "
+        f"All-pairs search: `{args.search}`"
+        + (f" ({'above ' + str(4 * REFINE_K) + ' shapes, ' if args.search == 'auto' else ''}"
+           "coarse-to-fine: a first pass on every 2nd contour "
+           f"point in single precision for all pairs, then each query's {REFINE_K} nearest by it "
+           "matched exactly, the other entries placed after them; "
+           "`geoshape.contour.retrieval`)" if args.search != "exact" else " (every pair exactly)")
+        + ".\n\n" + table + ("\n\n" + " ".join(notes) if notes else "") + "\n"
     )
     print(text)
     if not args.no_write:

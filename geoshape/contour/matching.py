@@ -224,12 +224,15 @@ def cyclic_dp_gram_costs(G: np.ndarray, n1: np.ndarray, n2: np.ndarray, *, skip_
     ``C[b, v, i, j] = max(n1[i] + n2[b, v, j] − 2·G[b, v, j, i], 0)`` with ``G (B, V, M, N)``,
     ``n1 (N,)``, ``n2 (B, V, M)``: the same values as ``batch_match_costs(C, "dp", …)``, bit for
     bit, without storing the ``(B, V, N, M)`` cost matrices (each is built in a small buffer
-    by the compiled kernel). O(B·(V·M·N + n_starts·N·M)).
+    by the compiled kernel). O(B·(V·M·N + n_starts·N·M)). ``G`` may be single precision
+    (kept as is: the cheap first pass of the coarse-to-fine retrieval search); everything
+    else is double.
     """
     from geoshape.contour._kernels import cyclic_dp_gram_kernel
 
     _check_dp_options(skip_cost, n_starts)
-    G = np.ascontiguousarray(G, dtype=np.float64)
+    G = np.asarray(G)
+    G = np.ascontiguousarray(G, dtype=np.float32 if G.dtype == np.float32 else np.float64)
     B, V, M, N = G.shape
     k = min(n_starts, V * M)
     totals = np.empty((B, k))
