@@ -116,6 +116,11 @@ def test_distance_symmetric_zero_diagonal_and_rejects_bad_shapes():
                   for m in (_table(rng), _ring(rng), _bottle(rng), _table(rng))])
     D = descriptor_distance_matrix("pcavox", X)
     assert np.allclose(D, D.T) and np.allclose(np.diag(D), 0)
+    # a shape to (a copy of) itself: exactly 0, not the ~1e-8 of |a|² + |b|² − 2 a·b
+    # (the index ranks a stored copy of the query first with distance < 1e-9)
+    R = pcavox_distance_matrix(X[:2], X.copy())
+    assert R[0, 0] == 0.0 and R[1, 1] == 0.0 and R[0, 1] > 0
+    np.testing.assert_allclose(R, pcavox_distance_matrix(X)[:2], rtol=1e-9)
     with pytest.raises(InvalidOptionError):
         pcavox_distance_matrix(np.zeros((2, 10)))
     with pytest.raises(InvalidOptionError):

@@ -112,3 +112,84 @@ def test_fused_method_on_meshes_matches_fusing_its_components():
     mats = {n: descriptor_distance_matrix(n, res["descriptors"][n]) for n in FUSED_WEIGHTS}
     np.testing.assert_allclose(D, fuse_distances(mats, FUSED_WEIGHTS))
     assert D[0, 1] < D[0, 2] and D[2, 3] < D[2, 0]
+
+
+def _two_regimes(seed=0, per=6):
+    """Classes 0, 1 tight in B and overlapping in A ("rigid": extrinsic sees them); classes 2, 3
+    tight in A and scattered in B ("articulated": extrinsic sees noise)."""
+    rng = np.random.default_rng(seed)
+    labels = np.repeat(np.arange(4), per)
+    ca = {0: (0.0, 0.0), 1: (1.0, 0.0), 2: (10.0, 0.0), 3: (0.0, 10.0)}
+    sa = {0: 1.0, 1: 1.0, 2: 0.3, 3: 0.3}
+    cb = {0: (0.0, 0.0), 1: (10.0, 0.0), 2: (5.0, 5.0), 3: (5.0, 5.0)}
+    sb = {0: 0.3, 1: 0.3, 2: 6.0, 3: 6.0}
+    noise = lambda s: rng.normal(0, 1, (len(labels), 2)) * np.array([s[c] for c in labels])[:, None]  # noqa: E731
+    XA = np.array([ca[c] for c in labels]) + noise(sa)
+    XB = np.array([cb[c] for c in labels]) + noise(sb)
+    return _dist(XA), _dist(XB), labels
+
+
+def test_sharper_per_query_weighting_picks_the_component_that_sees_the_query():
+    for seed in range(3):
+        A, B, labels = _two_regimes(seed)
+        def ft(D, labels=labels):
+            return retrieval_metrics(D, list(labels))["first_tier"]
+
+        fixed = fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, adaptive=False)
+        mild = fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, reference={}, power=1)
+        sharp = fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, reference={"a": 0.5, "b": 0.5})
+        assert _nn(sharp, labels) == 1.0
+        assert ft(sharp) >= ft(mild) >= ft(fixed) > max(ft(A), ft(B))
+
+
+def test_calibration_and_the_earlier_rule():
+    from geoshape.retrieval.fusion import (
+        FUSED_GAP_REFERENCE,
+        FUSED_POWER,
+        GAP_FLOOR,
+        query_gaps,
+        typical_gaps,
+    )
+
+    A, B, _ = _planted()
+    # reference={} and power=1: the uncalibrated rule W_c ∝ w_c max(gap_c, floor)
+    ga, gb = (np.maximum(query_gaps(X), GAP_FLOOR) for X in (A, B))
+    off = ~np.eye(len(A), dtype=bool)
+    na, nb = (X / np.array([np.median(r[o]) for r, o in zip(X, off, strict=True)])[:, None] for X in (A, B))
+    wa, wb = 0.3 * ga, 0.7 * gb
+    D = (wa[:, None] * na + wb[:, None] * nb) / (wa + wb)[:, None]
+    D = 0.5 * (D + D.T)
+    np.fill_diagonal(D, 0)
+    np.testing.assert_allclose(fuse_distances({"a": A, "b": B}, {"a": 0.3, "b": 0.7}, reference={}, power=1),
+                               D, rtol=1e-12, atol=1e-14)
+    # only the ratios of the references matter (same factor on every component cancels)
+    r = {"a": 0.4, "b": 0.8}
+    np.testing.assert_allclose(fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, reference=r),
+                               fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1},
+                                              reference={n: 0.5 * v for n, v in r.items()}), rtol=1e-10)
+    # power 0 is the fixed-weight fusion
+    np.testing.assert_allclose(fuse_distances({"a": A, "b": B}, {"a": 1, "b": 2}, power=0),
+                               fuse_distances({"a": A, "b": B}, {"a": 1, "b": 2}, adaptive=False), rtol=1e-12)
+    # typical gaps: the median of the query gaps; the library covers its own components
+    t = typical_gaps({"a": A})
+    assert t["a"] == pytest.approx(float(np.median(query_gaps(A))))
+    assert all(0 < FUSED_GAP_REFERENCE[c] <= 1 for c in FUSED_WEIGHTS)
+    assert FUSED_POWER > 0
+    with pytest.raises(InvalidOptionError, match="power"):
+        fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, power=-1)
+    with pytest.raises(InvalidOptionError, match="reference gap of 'a'"):
+        fuse_distances({"a": A, "b": B}, {"a": 1, "b": 1}, reference={"a": 0.0})
+    with pytest.raises(InvalidOptionError, match="all_pairs needs a square"):
+        query_gaps(A[:3], all_pairs=True)
+
+
+def test_l2_distances_are_exact_for_equal_vectors():
+    """A stored copy of the query must be at distance 0 (the index's top hit), so L2 is taken
+    from the differences, not from the cancelling |x|² + |y|² − 2 x·y."""
+    from geoshape.retrieval.descriptors import descriptor_distances
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(100, 200, (3, 272))
+    D = descriptor_distances("shd", X, X.copy())
+    assert np.all(np.diag(D) == 0.0)
+    np.testing.assert_allclose(D, np.linalg.norm(X[:, None] - X[None], axis=-1), rtol=1e-12)

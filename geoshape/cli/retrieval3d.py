@@ -16,8 +16,9 @@ from geoshape.io.outputs import declare_outputs
 
 #: the default's measured scores, quoted from docs/RESULTS.md (section "3D late fusion", row
 #: "fusion, adaptive (library)", written by ``geoshape bench fusion``)
-FUSED_SCORES = ("Measured (docs/RESULTS.md, section fusion): tosca_r5k NN 1.000 / FT 0.937, mixed3d "
-                "NN 0.971 / FT 0.780; about 1.0 s CPU per 5000-vertex mesh on one core.")
+FUSED_SCORES = ("Measured (docs/RESULTS.md, section fusion): tosca_r5k NN 1.000 / FT 0.954, mixed3d "
+                "NN 0.988 / FT 0.863 (seed 1: NN 0.983 / FT 0.843); about 0.8 s CPU per 5000-vertex mesh "
+                "on one core.")
 
 
 def register(subparsers) -> None:
@@ -34,9 +35,10 @@ def register(subparsers) -> None:
         "row order (--matrix), and NN, FT, ST, E, DCG, mAP and timings (--json). "
         f"Descriptors — {listing}; evd_ccd: EVD, then each query's top K re-ranked by CCD; "
         f"fused (the default): the {', '.join(n for n, w in FUSED_WEIGHTS.items() if w > 0)} "
-        f"matrices fused query-adaptively, weights {weights} (cross-validated over three "
-        "collections by 'geoshape bench fusion'; the spectral components share one "
-        "Laplace-Beltrami eigen-solve per mesh). " + FUSED_SCORES,
+        f"matrices fused query-adaptively (per query, each component weighted by how sharply it "
+        f"separates the query's nearest items compared with its usual sharpness), weights {weights} "
+        "(cross-validated over four collections by 'geoshape bench fusion'; the spectral components "
+        "share one Laplace-Beltrami eigen-solve per mesh). " + FUSED_SCORES,
     )
     p.add_argument("folder", metavar="DIR", help="folder with meshes and labels.csv")
     p.add_argument("--descriptor", default=None, metavar="NAME",

@@ -98,6 +98,10 @@ SEARCH_MODES = ("auto", "brute", "ivf", "memory")
 #: ``search="auto"`` uses the IVF above this many stored values (rows x descriptor length):
 #: 400,000 EVD rows; exact brute force costs about 4 ms there (``geoshape bench index``)
 IVF_MIN_VALUES = 8_000_000
+#: first-stage distances up to this are a stored copy of the query (unit-free fused and
+#: normalised distances; exact copies give 0 up to rounding): ranked first after re-ranking
+DUPLICATE_DISTANCE = 1e-12
+
 #: diffusion re-ranking gathers the shortlist's neighbours and theirs from the stored graph
 DIFFUSION_HOPS = 2
 
@@ -1053,7 +1057,10 @@ class ShapeIndex:
         R = diffuse(D, method)
         score = R[0, 1 : 1 + len(short)]
         first = np.asarray([x for _, x in short])
-        order = np.lexsort((np.arange(len(short)), first, score))
+        # a stored copy of the query (first-stage distance 0) stays first: diffusion scores
+        # saturate within a tight group, and a duplicate is the best answer by definition
+        copy = first <= DUPLICATE_DISTANCE
+        order = np.lexsort((np.arange(len(short)), first, score, ~copy))
         return [Hit(r + 1, short[o][0], float(score[o]), float(first[o])) for r, o in enumerate(order[:top])]
 
     @mesh_input

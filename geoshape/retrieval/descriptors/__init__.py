@@ -34,10 +34,12 @@ The re-ranking scheme EVD → CCD is :data:`RERANKERS` (``"evd_ccd"`` in
 :data:`RETRIEVAL_METHODS`): rank by EVD, then re-rank each query's top ``K`` by CCD.
 The late fusion ``"fused"`` (:data:`FUSIONS`) — the default retrieval method
 (:data:`DEFAULT_RETRIEVAL_METHOD`) of ``geoshape retrieval3d`` and of the index — computes
-``evd_heat``, ``shapedna``, ``lfd`` and ``wks`` (the three spectral ones from one shared
-Laplace–Beltrami eigen-solve, :func:`compute_descriptor_set`), their all-pairs matrices, and
-fuses them query-adaptively with the cross-validated weights
-:data:`geoshape.retrieval.fusion.FUSED_WEIGHTS` (:func:`geoshape.retrieval.fusion.fuse_distances`).
+the components of :data:`geoshape.retrieval.fusion.FUSED_WEIGHTS` (intrinsic ``evd_heat``,
+``shapedna``, ``wks`` from one shared Laplace–Beltrami eigen-solve,
+:func:`compute_descriptor_set`; extrinsic ``shd`` and ``pcavox``), their all-pairs matrices,
+and fuses them with per-query weights calibrated against each component's typical gap
+(:func:`geoshape.retrieval.fusion.fuse_distances`): per query, the components that see a
+sharper-than-usual group around it decide.
 
 ``affinity`` (geodesic / Euclidean / combined) applies to the descriptors flagged
 ``uses_affinity``; the others take none and reject one.
@@ -637,8 +639,11 @@ def descriptor_distances(name: str, queries, database) -> np.ndarray:
     if metric == "l1":
         return np.abs(X[:, None, :] - Y[None, :, :]).sum(axis=2) if len(X) * len(Y) * X.shape[1] < 5e7 \
             else np.array([np.abs(x - Y).sum(axis=1) for x in X])
-    d2 = (X * X).sum(1)[:, None] + (Y * Y).sum(1)[None, :] - 2.0 * X @ Y.T
-    return np.sqrt(np.maximum(d2, 0.0))
+    # L2 from the differences, not from |x|² + |y|² − 2 x·y: that expansion cancels to ~1e-14
+    # |x|² for equal vectors, i.e. a distance of ~1e-7 |x| between a shape and itself
+    if len(X) * len(Y) * X.shape[1] < 5e7:
+        return np.sqrt(((X[:, None, :] - Y[None, :, :]) ** 2).sum(axis=2))
+    return np.array([np.sqrt(((x - Y) ** 2).sum(axis=1)) for x in X])
 
 
 def descriptor_distance_matrix(name: str, descriptors, *, backend: str | None = "serial",

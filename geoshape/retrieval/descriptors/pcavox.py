@@ -230,4 +230,17 @@ def pcavox_distance_matrix(XA, XB=None, *, degenerate: float = PCAVOX_DEGENERATE
             continue
         d2 = na[:, None] + nb[None, :] - 2.0 * GA @ GB[:, perm].T
         D = np.where(ok, np.minimum(D, d2), D)
+    # |a|² + |b|² − 2 a·b cancels to ~1e-16 (|a|² + |b|²) for (near-)equal grids, i.e. a
+    # distance of ~1e-8 between a shape and itself: recompute such pairs from the differences
+    for a, b in np.argwhere(D <= 1e-10 * (na[:, None] + nb[None, :])):
+        best = np.inf
+        for p, perm in zip(axes, cells, strict=True):
+            allowed = True
+            for i in range(3):
+                if p[i] != i:
+                    lo, hi = sorted((i, int(p[i])))
+                    allowed &= bool(near(SA[a : a + 1], lo, hi)[0] or near(SB[b : b + 1], lo, hi)[0])
+            if allowed:
+                best = min(best, float(((GA[a] - GB[b, perm]) ** 2).sum()))
+        D[a, b] = best
     return np.sqrt(np.maximum(D, 0.0))
