@@ -21,6 +21,11 @@ Rule (fixed before the run): a setting whose total matrix time exceeds twice tha
 is not eligible; among the others, the one with the best *worst-case* bull's-eye over the
 collections wins (so no collection decides alone); ties within 0.05 points go to the higher
 mean mAP, then to the faster setting.
+
+With ``--methods M1,M2,…`` registered methods are compared instead (each as registered, mirror
+included), under the same rule with ``M1`` as the time reference; the table goes into its own
+section (``default2d``) of docs/RESULTS.md. This is how candidates for ``default`` (for example
+``default_hf``: the default plus height functions) are cross-validated.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ DEFAULT_SETS = (
 )
 #: name -> (mirror, n_starts per orientation)
 SETTINGS = {"off": (False, 4), "on-2": (True, 2), "on": (True, 4)}
+#: Candidates for ``default`` compared with ``--methods`` (the first is the time reference).
+DEFAULT_CANDIDATES = "default_2026_11,default_hf"
 #: A setting may cost at most this many times the matrix time of ``off``.
 MAX_TIME_RATIO = 2.0
 #: Worst-case bull's-eye values closer than this (points) are a tie.
@@ -47,6 +54,10 @@ def add_arguments(parser) -> None:
                         f"(default {DEFAULT_SETS})")
     parser.add_argument("--settings", default=",".join(SETTINGS),
                         help=f"comma-separated settings among: {', '.join(SETTINGS)} (default: all)")
+    parser.add_argument("--methods", default=None,
+                        help="compare these registered methods instead of mirror settings; the "
+                        "first is the time reference of the rule (e.g. "
+                        f"{DEFAULT_CANDIDATES})")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--no-write", action="store_true", help="print only")
 
@@ -55,17 +66,17 @@ def _slug(setting: str) -> str:
     return "mirror-" + setting
 
 
-def choose(summary: dict) -> str:
+def choose(summary: dict, reference: str = "off") -> str:
     """The setting the rule picks from ``{setting: (worst bull's-eye, mean mAP, matrix s)}``.
 
-    ``off`` must be present (it is the time reference).
+    ``reference`` (default ``off``) must be present: it is the time reference.
 
     >>> choose({"off": (90.0, 0.9, 10.0), "on": (95.0, 0.91, 15.0), "slow": (99.0, 0.99, 30.0)})
     'on'
     >>> choose({"off": (95.0, 0.92, 10.0), "on": (95.02, 0.91, 15.0)})
     'off'
     """
-    limit = MAX_TIME_RATIO * summary["off"][2]
+    limit = MAX_TIME_RATIO * summary[reference][2]
     eligible = {s: v for s, v in summary.items() if v[2] <= limit}
     top = max(v[0] for v in eligible.values())
     tied = {s: v for s, v in eligible.items() if v[0] >= top - TIE_POINTS}
@@ -118,6 +129,53 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
     return out
 
 
+def _method_points(method: str) -> tuple[str, int, dict]:
+    """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
+    points (100 unless given); ``+skipX`` overrides the DP skip cost.
+
+    >>> _method_points("default_hf"), _method_points("default+skip0.4@128")
+    (('default_hf', 100, {}), ('default', 128, {'skip_cost': 0.4}))
+    """
+    rest, _, n = method.partition("@")
+    base, _, skip = rest.partition("+skip")
+    return base, int(n) if n else 100, ({"skip_cost": float(skip)} if skip else {})
+
+
+def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> dict:
+    """Per registered method: the matrix, its time and the descriptors' time (cached)."""
+    import json
+    import os
+    import time
+
+    import numpy as np
+
+    from geoshape.contour.retrieval import contour_signatures, load_contours, shape_distance_matrix
+    from geoshape.io.atomic import save_npy_atomic, write_text_atomic
+    from geoshape.io.datasets import read_labels
+
+    out, contours = {}, {}
+    for method in methods:
+        base, n_points, overrides = _method_points(method)
+        path = work / f"{name}_{method}.npy"
+        meta = path.with_suffix(".json")
+        if path.is_file() and meta.is_file():
+            out[method] = (np.load(path), json.loads(meta.read_text()))
+            continue
+        if n_points not in contours:
+            contours[n_points] = load_contours([it.path for it in read_labels(folder)], n_points)
+        print(f"[{name}] {method} …", flush=True)
+        t0 = time.perf_counter()
+        sigs = contour_signatures(contours[n_points], base, n_jobs=n_jobs, **overrides)
+        t1 = time.perf_counter()
+        D = shape_distance_matrix(None, base, signatures=sigs, n_jobs=n_jobs, **overrides)
+        info = {"matrix_s": time.perf_counter() - t1, "load": os.getloadavg()[0],
+                "descriptors_s": t1 - t0}
+        save_npy_atomic(path, D)
+        write_text_atomic(meta, json.dumps(info) + "\n")
+        out[method] = (D, info)
+    return out
+
+
 def run(args) -> int:
     import os
     import platform
@@ -133,11 +191,18 @@ def run(args) -> int:
     from geoshape.io.datasets import read_labels
     from geoshape.metrics.retrieval import retrieval_metrics
 
-    settings = [s.strip() for s in args.settings.split(",") if s.strip()]
-    for s in settings:
-        check_choice("setting", s, SETTINGS)
-    if "off" not in settings:
-        settings.insert(0, "off")  # the time reference of the rule
+    if args.methods:
+        settings = [m.strip() for m in args.methods.split(",") if m.strip()]
+        for m in settings:
+            check_choice("method", _method_points(m)[0], CONTOUR_METHODS)
+        reference = settings[0]
+    else:
+        settings = [s.strip() for s in args.settings.split(",") if s.strip()]
+        for s in settings:
+            check_choice("setting", s, SETTINGS)
+        if "off" not in settings:
+            settings.insert(0, "off")  # the time reference of the rule
+        reference = "off"
     work = Path(args.matrix_dir)
     work.mkdir(parents=True, exist_ok=True)
     scores = {}  # (collection, setting) -> (top-k total, top-k max, bull's-eye, mAP, desc s, matrix s)
@@ -147,7 +212,9 @@ def run(args) -> int:
         folder = _folder(name, spec, work)
         labels = [it.label for it in read_labels(folder)]
         names.append((name, len(labels)))
-        for setting, (D, info) in _collection(name, folder, work, settings, args.n_jobs).items():
+        per = (_method_collection(name, folder, work, settings, args.n_jobs) if args.methods
+               else _collection(name, folder, work, settings, args.n_jobs))
+        for setting, (D, info) in per.items():
             m = retrieval_metrics(D, labels)
             scores[name, setting] = (m["top_k_total"], m["top_k_max"], m["bulls_eye"], m["map"],
                                      info["descriptors_s"], info["matrix_s"])
@@ -156,14 +223,22 @@ def run(args) -> int:
                   f"{m['bulls_eye']:.2f} %, mAP {m['map']:.4f}, matrix {info['matrix_s']:.1f} s",
                   flush=True)
 
+    col = "method" if args.methods else "mirror"
     rows = []
     for name, n in names:
+        base = name.rpartition("-")[0]
         for setting in settings:
             tot, mx, be, mAP, ds, ms = scores[name, setting]
-            rows.append([name, n, setting, f"{tot}/{mx}", f"{be:.2f}", f"{mAP:.4f}", f"{ds:.1f}",
-                         f"{ms:.1f}"])
-    table = markdown_table(["collection", "N", "mirror", "top-10 total", "bull's-eye %", "mAP",
-                            "descriptors s", "all-pairs matrix s"], rows)
+            row = [name, n, setting, f"{tot}/{mx}", f"{be:.2f}", f"{mAP:.4f}", f"{ds:.1f}",
+                   f"{ms:.1f}"]
+            if args.methods:  # bull's-eye points below the clean collection's
+                clean = scores.get((base, setting))
+                row.insert(5, f"{be - clean[2]:+.2f}" if clean else "")
+            rows.append(row)
+    header = [col, "top-10 total", "bull's-eye %", "mAP", "descriptors s", "all-pairs matrix s"]
+    if args.methods:
+        header.insert(3, "BE − clean")
+    table = markdown_table(["collection", "N", *header], rows)
     # Mean rank over collections (1 = best bull's-eye; ties share the mean rank).
     ranks = {s: [] for s in settings}
     for name, _ in names:
@@ -175,20 +250,27 @@ def run(args) -> int:
         vals = [scores[name, s] for name, _ in names]
         summary[s] = (min(v[2] for v in vals), float(np.mean([v[3] for v in vals])),
                       sum(v[5] for v in vals))
-    chosen = choose(summary)
-    off_time = summary["off"][2]
+    chosen = choose(summary, reference)
+    off_time = summary[reference][2]
     worst = {s: min(names, key=lambda nn, s=s: scores[nn[0], s][2])[0] for s in settings}
     sum_rows = [[s, f"{summary[s][0]:.2f} ({worst[s]})",
                  f"{np.mean([scores[n, s][2] for n, _ in names]):.2f}", f"{summary[s][1]:.4f}",
                  f"{np.mean(ranks[s]):.2f}", f"{summary[s][2]:.1f}", f"{summary[s][2] / off_time:.2f}",
                  "**chosen**" if s == chosen else ""] for s in settings]
-    sum_table = markdown_table(["mirror", "worst bull's-eye % (collection)", "mean bull's-eye %",
-                                "mean mAP", "mean rank", "matrix s, all collections", "× off",
-                                "rule"], sum_rows)
+    sum_table = markdown_table([col, "worst bull's-eye % (collection)", "mean bull's-eye %",
+                                "mean mAP", "mean rank", "matrix s, all collections",
+                                f"× {reference}", "rule"], sum_rows)
+    workers = args.n_jobs or os.cpu_count()
+    if args.methods:
+        text = _methods_section(args, settings, reference, chosen, workers, loads, table,
+                                sum_table)
+        print(text)
+        if not args.no_write:
+            update_results_section("default2d", text)
+        return 0
     spec = CONTOUR_METHODS["default"]
     library = next((s for s, v in SETTINGS.items()
                     if v == (spec["mirror"], spec["matcher_options"]["n_starts"])), "other")
-    workers = args.n_jobs or os.cpu_count()
     text = (
         "## 2D mirror-aware matching (default method)\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --settings "
@@ -215,3 +297,39 @@ def run(args) -> int:
     if not args.no_write:
         update_results_section("mirror2d", text)
     return 0
+
+
+def _methods_section(args, methods, reference, chosen, workers, loads, table, sum_table) -> str:
+    import platform
+    import time
+
+    from geoshape.contour.methods import CONTOUR_METHODS
+
+    def spec(m):
+        return CONTOUR_METHODS[_method_points(m)[0]]
+
+    def extra(m):
+        _, n, over = _method_points(m)
+        return f", {n} contour points" + "".join(f", {k} {v:g}" for k, v in over.items())
+
+    what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
+    default = CONTOUR_METHODS["default"]
+    same = [m for m in methods if _method_points(m)[1:] == (100, {})
+            and all(spec(m)[k] == default[k] for k in ("parts", "matcher_options", "mirror"))]
+    return (
+        "## 2D default method: cross-validated choice\n\n"
+        f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "
+        f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
+        f"{workers} workers, {platform.machine()}; shared with other jobs, 1-min load average "
+        f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
+        "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X). "
+        "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
+        "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
+        f"Candidates:\n\n{what}\n\n"
+        f"Rule, fixed before the run: a method whose matrix time summed over the collections is "
+        f"above {MAX_TIME_RATIO:g} × that of `{reference}` is not eligible; of the others the best "
+        f"*worst-case* bull's-eye over the collections wins (ties within {TIE_POINTS} points: "
+        f"higher mean mAP, then faster). Chosen: `{chosen}`; `default` is currently the same "
+        f"as: {', '.join(f'`{m}`' for m in same) or 'none of these'}.\n\n"
+        + table + "\n\n" + sum_table
+    )

@@ -15,13 +15,18 @@ name           descriptor                               point cost   matcher
                ½ shape context + 0.005 geodesic shape   squared L2   orientations (mirror
                context (weighted concatenation)                      images)
 ``default_nomirror`` the same, direct orientation only (the previous default)
+``default_2026_11`` the default of November 2026 (kept under this name when the default moves)
+``default_hf`` the default + 3 × height functions (Wang et al. 2012), a cross-validation candidate
+``height_functions`` height functions alone  squared L2   cyclic DP, both orientations
 ============== ======================================== ============ ===========================
 
 A silhouette and its reflection are the same shape for retrieval: ``default`` matches each
 shape against the other one and against its mirror image and keeps the better (option
 ``mirror``; ``mirror=False`` in the API, ``--method default_nomirror`` on the command line
 turn it off). Chosen by ``geoshape bench mirror2d`` (docs/RESULTS.md, "2D mirror-aware
-matching").
+matching"); kept against ``default_hf`` (+ height functions) and the same on 128 contour
+points by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
+cross-validated choice": best worst-case bull's-eye over nine dev collections).
 
 Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
 an embedding ``X (N, K)`` in which the point cost is a squared Euclidean distance (histograms
@@ -83,6 +88,12 @@ def _idsc(P, **kw):
     return inner_distance_shape_context(P, **kw)
 
 
+def _hf(P, **kw):
+    from geoshape.contour.descriptors import height_functions
+
+    return height_functions(P, **kw)
+
+
 def _cmap(P, **kw):
     from geoshape.contour.descriptors import curvature_map
 
@@ -95,6 +106,7 @@ POINT_DESCRIPTORS = {
     "shape_context": _sc,
     "idsc": _idsc,
     "curvature_map": _cmap,
+    "height_functions": _hf,
 }
 
 #: How a descriptor enters the embedding: ``raw`` as is, ``hist`` as sqrt(h/2) (Hellinger).
@@ -119,6 +131,24 @@ CONTOUR_METHODS: dict[str, dict] = {
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
         mirror=False,
         summary="the default without mirror images (its previous default)",
+    ),
+    "default_2026_11": dict(
+        parts=_DEFAULT_PARTS,
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
+        mirror=True,
+        summary="the default of November 2026 (the same as default)",
+    ),
+    "default_hf": dict(
+        parts=_DEFAULT_PARTS + (("height_functions", 3.0, "raw", {}),),
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
+        mirror=True,
+        summary="the default + 3 x height functions (25 runs), cyclic DP, mirror images too",
+    ),
+    "height_functions": dict(
+        parts=(("height_functions", 1.0, "raw", {}),),
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.06, n_starts=4),
+        mirror=True,
+        summary="height functions (Wang et al. 2012), 25 runs, cyclic DP, mirror images too",
     ),
     "gsc": dict(
         parts=(("gsc", 1.0, "raw", dict(threshold="hysteresis", bins="thesis", window=4)),),

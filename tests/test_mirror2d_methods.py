@@ -1,0 +1,40 @@
+"""``geoshape bench mirror2d --methods``: registered methods (optionally on other contour point
+counts or skip costs) compared on several collections under the fixed rule."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from geoshape.bench import mirror2d
+
+
+def test_method_names_parse():
+    assert mirror2d._method_points("default") == ("default", 100, {})
+    assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
+    assert mirror2d._method_points("default+skip0.4") == ("default", 100, {"skip_cost": 0.4})
+
+
+def test_rule_uses_the_reference_for_time():
+    summary = {"ref": (90.0, 0.9, 10.0), "fast": (91.0, 0.9, 19.0), "slow": (99.0, 0.99, 21.0)}
+    assert mirror2d.choose(summary, "ref") == "fast"
+    assert mirror2d.choose({"ref": (95.0, 0.92, 10.0), "b": (95.03, 0.91, 5.0)}, "ref") == "ref"
+
+
+def test_methods_mode_runs_and_caches(tmp_path, capsys):
+    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
+    folder = tmp_path / "sil"
+    generate_silhouettes(folder, per_class=3, classes=("person", "star", "crab"), seed=1, size=96)
+    parser = argparse.ArgumentParser()
+    mirror2d.add_arguments(parser)
+    args = parser.parse_args(["--matrix-dir", str(tmp_path / "work"), "--sets", f"tiny={folder}",
+                              "--methods", "height_functions,height_functions+skip0.1@64",
+                              "--n-jobs", "1", "--no-write"])
+    assert mirror2d.run(args) == 0
+    out = capsys.readouterr().out
+    assert "2D default method: cross-validated choice" in out and "**chosen**" in out
+    D = np.load(tmp_path / "work" / "tiny_height_functions+skip0.1@64.npy")
+    assert D.shape == (9, 9) and np.allclose(D, D.T)
+    assert mirror2d.run(args) == 0  # from the cache
