@@ -7,7 +7,7 @@
 2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
 3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut;
 4. :func:`refine` — the cheapest screened candidates refined by ZoomOut, plus
-   :func:`descriptor_candidate` (wave kernel signatures), :func:`measure_distortion` and,
+   :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion` and,
    when the best map is mirrored, :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
 6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
@@ -426,28 +426,38 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     return refined
 
 
-def descriptor_candidate(ctx: PairContext, options: GeoshapeOptions, timings: dict) -> Candidate | None:
-    """Stage 4b: a refined candidate independent of the eigenvector alignment, from the
+def descriptor_candidates(ctx: PairContext, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
+    """Stage 4b: refined candidates independent of the eigenvector alignment, from the
     functional map of wave kernel signatures with an orientation term (low eigenvectors of
     a body do not tell front from back, and the front–back mirror composed with the
-    left–right one keeps orientation). None when ``descriptor_map`` is off or fewer than 3
+    left–right one keeps orientation). Empty when ``descriptor_map`` is off or fewer than 3
     eigenpairs are usable. A least-squares problem in kd^2 unknowns (kd = ``descriptor_k``),
-    then one refinement from kd.
+    then one refinement from kd; when ``screen_k`` < kd, a second candidate restarts from
+    that refined map at ``screen_k`` eigenpairs, as every spectral candidate is refined
+    (the descriptor map's high frequencies are its least reliable part; the decision keeps
+    whichever of the two scores better). Two refinements.
     """
     kd = min(options.descriptor_k, ctx.lb_k)
     if not (options.descriptor_map and kd >= 3):
-        return None
+        return []
     from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_functional_map
-    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
+    from geoshape.correspondence.fmaps.zoomout import functional_map_from_p2p, p2p_from_functional_map
 
     t = time.perf_counter()
     m1, m2, lb_k = ctx.m1, ctx.m2, ctx.lb_k
+    rows1 = ctx.s1 if ctx.large else None
     C = descriptor_functional_map(m1.descriptor_operators(kd, lb_k), m2.descriptor_operators(kd, lb_k),
                                   orientation=options.prefer)
-    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
-    c = _refine_into(ctx, Candidate("descriptors"), init, options, on_refinement_rows=True, k_start=kd)
+    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=rows1, rows2=ctx.s2)
+    out = [_refine_into(ctx, Candidate("descriptors"), init, options, on_refinement_rows=True, k_start=kd)]
+    ks = ctx.screen_k
+    if ks < kd:
+        C = functional_map_from_p2p(ctx.b1, ctx.b2, out[0].refined_map, ks, ks, rows1=rows1)
+        init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=rows1, rows2=ctx.s2)
+        out.append(_refine_into(ctx, Candidate("descriptors"), init, options, on_refinement_rows=True,
+                                k_start=ks))
     timings["descriptor_map"] = time.perf_counter() - t
-    return c
+    return out
 
 
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
@@ -603,9 +613,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     ctx = pair_context(m1, m2, A, B, options, timings)
     ranked = sorted(screen(ctx, alignments, options, timings), key=lambda c: c.zoomout_energy)
     refined = refine(ctx, ranked, options, timings)
-    descriptors = descriptor_candidate(ctx, options, timings)
-    if descriptors is not None:
-        refined.append(descriptors)
+    refined += descriptor_candidates(ctx, options, timings)
     measure_distortion(ctx, refined, options, timings)
     completed = complete_symmetry(ctx, refined, options, timings)
     if completed is not None:
