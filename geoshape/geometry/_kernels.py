@@ -43,6 +43,18 @@ def farthest_point_order(X, first, n_samples):
 
 
 @numba.njit(cache=True, nogil=True)
+def _row_sq_norms(X):
+    """``(X * X).sum(axis=1)``, summed in column order."""
+    out = np.empty(X.shape[0])
+    for i in range(X.shape[0]):
+        s = 0.0
+        for c in range(X.shape[1]):
+            s += X[i, c] * X[i, c]
+        out[i] = s
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
 def signed_match_costs(A, Bp, half_signs):
     """``Σ_i min_j ‖A_i − s ∘ Bp_j‖`` for every sign vector ``s`` of ``half_signs (h, k)`` and
     its negation: ``(2h,)``, the costs of ``half_signs`` then of ``−half_signs``.
@@ -53,18 +65,7 @@ def signed_match_costs(A, Bp, half_signs):
     n1, k = A.shape
     n2 = Bp.shape[0]
     h = half_signs.shape[0]
-    a2 = np.empty(n1)
-    for i in range(n1):
-        s = 0.0
-        for c in range(k):
-            s += A[i, c] * A[i, c]
-        a2[i] = s
-    b2 = np.empty(n2)
-    for j in range(n2):
-        s = 0.0
-        for c in range(k):
-            s += Bp[j, c] * Bp[j, c]
-        b2[j] = s
+    a2, b2 = _row_sq_norms(A), _row_sq_norms(Bp)
     best = np.full((2 * h, n1), np.inf)
     prod = np.empty(k)
     for i in range(n1):
