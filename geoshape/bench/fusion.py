@@ -61,6 +61,12 @@ def _cache_tag(set_name: str, args) -> str:
     return set_name
 
 
+def folder_flags(args) -> str:
+    """The ``--mixed`` / ``--mixed-s1`` / ``--cache`` part of a bench command, folders as DIR."""
+    flags = [("mixed", "--mixed"), ("mixed_s1", "--mixed-s1"), ("cache", "--cache")]
+    return "".join(f" {flag} DIR" for name, flag in flags if getattr(args, name, None))
+
+
 def _folder(set_name: str, tmp, args):
     from pathlib import Path
 
@@ -390,12 +396,7 @@ def run(args) -> int:
     cmd = f"geoshape bench fusion --sets {args.sets} --components {args.components}"
     if args.grid_step != 0.125:
         cmd += f" --grid-step {args.grid_step:g}"
-    if args.mixed:
-        cmd += " --mixed DIR"
-    if args.mixed_s1:
-        cmd += " --mixed-s1 DIR"
-    if args.cache:
-        cmd += " --cache DIR"
+    cmd += folder_flags(args)
     text = (
         "## 3D late fusion of descriptors (fixed vs query-adaptive)\n\n"
         f"Command: `{cmd}`. Components' all-pairs matrices as `geoshape retrieval3d` computes "

@@ -321,6 +321,8 @@ def run(args) -> int:
 
 
 def _command(args) -> str:
+    from geoshape.bench.fusion import folder_flags
+
     cmd = f"geoshape bench retrieval3d --sets {args.sets} --affinities {args.affinities}"
     if args.descriptors:
         cmd += f" --descriptors {args.descriptors}"
@@ -328,12 +330,7 @@ def _command(args) -> str:
         cmd += f" --index-rows {args.index_rows}"
     if args.hires != 3:
         cmd += f" --hires {args.hires}"
-    if args.mixed:
-        cmd += " --mixed DIR"
-    if args.mixed_s1:
-        cmd += " --mixed-s1 DIR"
-    if args.cache:
-        cmd += " --cache DIR"
+    cmd += folder_flags(args)
     if getattr(args, "cached_only", False):
         cmd += " --cached-only"
     return cmd + f" --section {args.section}"
