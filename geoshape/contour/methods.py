@@ -352,25 +352,32 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
 _GRAM_CHUNK = 16
 
 
-def _dp_pair_costs(X1: np.ndarray, stack: SignatureStack, opts: dict) -> np.ndarray:
-    """:func:`pair_costs` for the ``dp`` matcher with the squared-Euclidean cost.
+def _dp_pair_costs(X1: np.ndarray, stack: SignatureStack, opts: dict,
+                   cols: np.ndarray | None = None) -> np.ndarray:
+    """:func:`pair_costs` for the ``dp`` matcher with the squared-Euclidean cost, against
+    every stacked shape or only those at ``cols`` (without copying the stack).
 
     The Gram matrices of all orientations come from one product per chunk of
     ``_GRAM_CHUNK`` pairs into a reused buffer (each pair's is the same product as
     :func:`_gram_parts`, so the same bits), and are matched while still in the cache.
     """
     XV, n2 = stack.XV, stack.sq_norms
-    B, V, M, _ = XV.shape
+    picked = np.arange(len(XV)) if cols is None else np.asarray(cols, dtype=np.int64)
+    _, V, M, _ = XV.shape
     n1 = (X1**2).sum(axis=1)
     X1T = np.ascontiguousarray(X1.T)
-    buf = np.empty((min(B, _GRAM_CHUNK), V, M, len(X1)))
-    out = np.empty(B)
-    for c in range(0, B, _GRAM_CHUNK):
-        G = buf[:min(_GRAM_CHUNK, B - c)]
-        np.matmul(XV[c:c + _GRAM_CHUNK], X1T, out=G)
-        out[c:c + len(G)] = cyclic_dp_gram_costs(G, n1, n2[c:c + _GRAM_CHUNK],
-                                                 skip_cost=opts.get("skip_cost", 0.3),
-                                                 n_starts=opts.get("n_starts", 4))
+    buf = np.empty((min(len(picked), _GRAM_CHUNK), V, M, len(X1)))
+    out = np.empty(len(picked))
+    for c in range(0, len(picked), _GRAM_CHUNK):
+        chunk = picked[c:c + _GRAM_CHUNK]
+        G = buf[:len(chunk)]
+        if cols is None:
+            np.matmul(XV[c:c + len(chunk)], X1T, out=G)
+        else:
+            for t, j in enumerate(chunk):
+                np.matmul(XV[j], X1T, out=G[t])
+        out[c:c + len(chunk)] = cyclic_dp_gram_costs(G, n1, n2[chunk], skip_cost=opts.get("skip_cost", 0.3),
+                                                     n_starts=opts.get("n_starts", 4))
     return out
 
 

@@ -40,7 +40,6 @@ from geoshape._options import check_choice
 from geoshape.contour.methods import (
     DEFAULT_METHOD,
     ContourSignature,
-    SignatureStack,
     contour_signature,
     method_spec,
     pair_costs,
@@ -229,37 +228,12 @@ def _coarse_block(items_a, items_b, skip_cost: float, n_starts: int) -> np.ndarr
     return out
 
 
-def _exact_costs_at(sig: ContourSignature, stack: SignatureStack, cols: np.ndarray,
-                    spec: dict) -> np.ndarray:
-    """``pair_costs(sig, stack[cols], spec)`` for the ``dp`` matcher with the squared-Euclidean
-    cost (:func:`geoshape.contour.methods._dp_pair_costs`) without copying the stacked
-    signatures: each pair's Gram matrices are the same product into the buffer, so the costs
-    are the same bits."""
-    from geoshape.contour.matching import cyclic_dp_gram_costs
-    from geoshape.contour.methods import _GRAM_CHUNK, _variant_options
-
-    opts = _variant_options(spec)
-    XV, n2 = stack.XV, stack.sq_norms
-    _, V, M, _ = XV.shape
-    X1 = sig.X
-    n1 = (X1**2).sum(axis=1)
-    X1T = np.ascontiguousarray(X1.T)
-    buf = np.empty((min(len(cols), _GRAM_CHUNK), V, M, len(X1)))
-    out = np.empty(len(cols))
-    for c in range(0, len(cols), _GRAM_CHUNK):
-        chunk = cols[c:c + _GRAM_CHUNK]
-        G = buf[:len(chunk)]
-        for t, j in enumerate(chunk):
-            np.matmul(XV[j], X1T, out=G[t])
-        out[c:c + len(chunk)] = cyclic_dp_gram_costs(G, n1, n2[chunk],
-                                                     skip_cost=opts.get("skip_cost", 0.3),
-                                                     n_starts=opts.get("n_starts", 4))
-    return out
-
-
 def _refine_block(items_a, items_b, spec: dict, refine: np.ndarray) -> np.ndarray:
     """Exact distances of the pairs ``i < j`` of a block marked in ``refine (N, N)``; items are
     ``(index, signature)``; the other entries are 0."""
+    from geoshape.contour.methods import _dp_pair_costs, _variant_options
+
+    opts = _variant_options(spec)
     out = np.zeros((len(items_a), len(items_b)))
     index_b = np.array([j for j, _ in items_b])
     stack = stack_signatures([sig for _, sig in items_b])
@@ -267,7 +241,7 @@ def _refine_block(items_a, items_b, spec: dict, refine: np.ndarray) -> np.ndarra
         for r, (i, sig) in enumerate(items_a):
             cols = np.flatnonzero(refine[i, index_b] & (index_b > i))
             if len(cols):
-                out[r, cols] = _exact_costs_at(sig, stack, cols, spec)
+                out[r, cols] = _dp_pair_costs(sig.X, stack, opts, cols)
     return out
 
 
