@@ -157,3 +157,50 @@ def test_separates_planted_rigid_classes_with_varied_proportions():
     m = retrieval_metrics(descriptor_distance_matrix("pcavox", np.array(X)), labels)
     assert m["nearest_neighbor"] == 1.0
     assert m["first_tier"] >= 0.9, m
+
+
+def _random_pcavox(rng, n: int, R: int = 8) -> np.ndarray:
+    """Random unit grids (sparse, like surface occupancy) with random spreads, some
+    near-degenerate so that axis swaps are allowed."""
+    G = np.abs(rng.standard_normal((n, R**3))) * (rng.random((n, R**3)) < 0.3)
+    G /= np.linalg.norm(G, axis=1, keepdims=True)
+    s1 = rng.uniform(0.5, 1.0, n)
+    S = np.c_[np.ones(n), s1, s1 * rng.uniform(0.5, 1.0, n)]
+    return np.c_[G, S]
+
+
+def test_lower_bound_embedding_bounds_every_symmetry_and_is_invariant():
+    from geoshape.retrieval.descriptors.pcavox import pcavox_lower_bound_embedding
+
+    rng = np.random.default_rng(4)
+    X = _random_pcavox(rng, 30)
+    E = pcavox_lower_bound_embedding(X, frequencies=3)
+    assert E.shape == (30, 27)
+    L = np.sqrt(((E[:, None] - E[None]) ** 2).sum(-1))
+    for degenerate in (0.0, 0.8, 1.0):  # all 48 symmetries, the default rule, sign flips only
+        D = pcavox_distance_matrix(X, degenerate=degenerate)
+        assert np.all(L <= D + 1e-12)
+    # the same vector for a grid transformed by any of the 48 symmetries
+    _, cells = _symmetries(8)
+    for perm in cells:
+        Y = X.copy()
+        Y[:, :-3] = X[:, :-3][:, perm]
+        assert np.allclose(pcavox_lower_bound_embedding(Y, frequencies=3), E, atol=1e-12)
+    # informative on real shapes: a good fraction of the distance between tables and rings
+    meshes = [f(np.random.default_rng(k)) for k in range(3) for f in (_table, _ring)]
+    Xm = np.array([pcavox_descriptor(m.vertices, m.faces, resolution=8) for m in meshes])
+    Em = pcavox_lower_bound_embedding(Xm)
+    Lm = np.sqrt(((Em[:, None] - Em[None]) ** 2).sum(-1))
+    iu = np.triu_indices(len(meshes), 1)
+    assert np.median(Lm[iu] / pcavox_distance_matrix(Xm)[iu]) > 0.3
+    with pytest.raises(InvalidOptionError, match="frequencies"):
+        pcavox_lower_bound_embedding(X, frequencies=9)
+
+
+def test_few_queries_against_many_rows_give_the_same_matrix():
+    """A query block of at most 8 rows permutes the query side in one product; the other
+    orientation loops over the symmetries: the same distances."""
+    rng = np.random.default_rng(5)
+    A, B = _random_pcavox(rng, 5), _random_pcavox(rng, 40)
+    assert np.allclose(pcavox_distance_matrix(A, B), pcavox_distance_matrix(B, A).T, atol=1e-12)
+    assert np.allclose(pcavox_distance_matrix(A[:1], A)[0, 0], 0.0)

@@ -193,3 +193,23 @@ def test_l2_distances_are_exact_for_equal_vectors():
     D = descriptor_distances("shd", X, X.copy())
     assert np.all(np.diag(D) == 0.0)
     np.testing.assert_allclose(D, np.linalg.norm(X[:, None] - X[None], axis=-1), rtol=1e-12)
+
+
+def test_estimated_row_with_the_whole_database_is_the_fused_row():
+    """Given the whole database as its sample and the exact nearest distances, the row fused
+    from outside statistics is the (1, M) row of ``fuse_distances``; with a sample its
+    distances keep the same order when the sample's medians are the database's."""
+    from geoshape.retrieval.fusion import FUSED_K, fuse_estimated_row
+
+    rng = np.random.default_rng(2)
+    rows = {"evd_heat": rng.random(60), "shd": 7.0 * rng.random(60), "pcavox": 0.1 * rng.random(60)}
+    weights = {"evd_heat": 0.2, "shd": 0.3, "pcavox": 0.5}
+    full = fuse_distances({c: r[None] for c, r in rows.items()}, weights, all_pairs=False)[0]
+    near = {c: np.sort(r)[:FUSED_K] for c, r in rows.items()}
+    est = fuse_estimated_row(rows, rows, near, weights)
+    assert np.allclose(est, full, rtol=1e-12)
+    # a subset scored with the full statistics: the same numbers for those items
+    part = fuse_estimated_row({c: r[10:20] for c, r in rows.items()}, rows, near, weights)
+    assert np.allclose(part, full[10:20], rtol=1e-12)
+    with pytest.raises(InvalidOptionError, match="non-negative"):
+        fuse_estimated_row({**rows, "shd": -rows["shd"]}, rows, near, weights)

@@ -223,3 +223,73 @@ def test_cli_rerank_lcdp_and_a_bad_rerank_name(tmp_path):
     assert "'lcdp'" in r.stderr and "'ccd'" in r.stderr and "bogus" in r.stderr
     r = _cli("index", "query", db, paths[2], "--descriptor", "d2", "--search", "ivf", "--top", "2")
     assert r.returncode == 0, r.stderr
+
+
+def _fused_rows(n: int, seed: int = 0, clusters: int = 10) -> dict[str, np.ndarray]:
+    """Clustered synthetic rows for the fused method's five components (short pcavox grids,
+    8³ cells; spreads near-degenerate in some clusters)."""
+    rng = np.random.default_rng(seed)
+    which = rng.integers(0, clusters, n)
+    out = {}
+    for c, d in (("evd_heat", 20), ("shapedna", 20), ("shd", 32), ("wks", 16)):
+        centres = rng.gamma(2.0, 1.0, (clusters, d))
+        out[c] = centres[which] * np.exp(0.1 * rng.standard_normal((n, d)))
+    G = np.abs(rng.standard_normal((clusters, 512))) * (rng.random((clusters, 512)) < 0.3)
+    G = G[which] * np.exp(0.1 * rng.standard_normal((n, 512)))
+    G /= np.linalg.norm(G, axis=1, keepdims=True)
+    s1 = rng.uniform(0.6, 1.0, clusters)[which]
+    out["pcavox"] = np.c_[G, np.ones(n), s1, 0.5 * s1]
+    return out
+
+
+def test_fused_query_over_a_candidate_list_matches_the_exact_scan(tmp_path, monkeypatch):
+    """Above FUSED_SCAN_MAX a fused query scores candidates from each component's search
+    (pcavox through its lower-bound sidecar) with sampled medians. With every shape in
+    the sample it is the exact scan; with a small sample and candidate list it still finds
+    most of the exact top 10; the lower-bound sidecar follows new rows."""
+    import geoshape.retrieval.index as index_module
+
+    rows = _fused_rows(240)
+    names = [f"/synthetic/{k:03d}.off" for k in range(240)]
+    rng = np.random.default_rng(9)
+    queries = [{c: X[i] * np.exp(0.02 * rng.standard_normal(X.shape[1])) if c != "pcavox" else X[i]
+                for c, X in rows.items()} for i in (0, 17, 101, 239)]
+    with ShapeIndex(tmp_path / "i.db", search="brute") as idx:
+        for c, X in rows.items():
+            _fill(idx, c, X, names)
+        exact = [idx.query_descriptor(q, "fused", top=10) for q in queries]
+        monkeypatch.setattr(index_module, "FUSED_SCAN_MAX", 0)
+        monkeypatch.setattr(index_module, "FUSED_SAMPLE", 1000)  # every shape: exact medians
+        for q, want in zip(queries, exact, strict=True):
+            hits = idx.query_descriptor(q, "fused", top=10)
+            assert [h.path for h in hits] == [h.path for h in want]
+            assert np.allclose([h.distance for h in hits], [h.distance for h in want], rtol=1e-9)
+        assert idx.vector_set("pcavox") is None and idx.vector_set("pcavox", lower_bound=True).n == 240
+        monkeypatch.setattr(index_module, "FUSED_SAMPLE", 48)
+        monkeypatch.setattr(index_module, "FUSED_CANDIDATES", 12)
+        found = [{h.path for h in idx.query_descriptor(q, "fused", top=10)} for q in queries]
+        recall = np.mean([len(f & {h.path for h in w}) / 10 for f, w in zip(found, exact, strict=True)])
+        assert recall >= 0.8
+        # a new stored copy of query 0 (all components): found first, at distance 0
+        for c in rows:
+            _fill(idx, c, queries[0][c][None], ["/synthetic/copy.off"])
+        hits = idx.query_descriptor(queries[0], "fused", top=3)
+        assert hits[0].path == "/synthetic/copy.off" and hits[0].distance < 1e-9
+        assert idx.vector_set("pcavox", lower_bound=True).n == 241
+
+
+def test_rows_of_and_the_hash_sample():
+    X = _clustered(500, 8, seed=2)
+    names = [f"/s/{k:03d}.off" for k in range(500)]
+    meta = {"index_id": "x", "descriptor": "evd", "params": "{}", "version": 1, "metric": "chi2",
+            "shape": [8]}
+    vs = VectorSet.build(meta, names, X)
+    rows = vs.rows_of(["/s/007.off", "/nowhere.off", "/s/499.off"])
+    assert rows[1] == -1 and vs.path(rows[0]) == "/s/007.off" and vs.path(rows[2]) == "/s/499.off"
+    assert np.array_equal(np.asarray(vs.X)[rows[0]], X[7])
+    sample = vs.sample_rows(50)
+    assert len(set(sample.tolist())) == 50
+    # the smallest path hashes: independent of insertion order and list grouping
+    expected = sorted(np.argsort(path_hashes(names), kind="stable")[:50].tolist())
+    assert sorted(int(names.index(vs.path(r))) for r in sample) == expected
+    assert len(vs.sample_rows(10_000)) == 500

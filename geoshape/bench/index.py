@@ -40,11 +40,18 @@ CHUNK = 50_000
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES),
+    parser.add_argument("--sizes", type=int, nargs="*", default=list(SIZES),
                         help="numbers of stored rows (default 100000 1000000)")
     parser.add_argument("--queries", type=int, default=100, help="queries per size and mode (default 100)")
     parser.add_argument("--memory-queries", type=int, default=10,
                         help="queries of the in-memory baseline (default 10; 0 skips it)")
+    parser.add_argument("--fused-sizes", type=int, nargs="*", default=list(SIZES),
+                        help="stored shapes for the default (fused) query (default 100000 1000000; "
+                             "none skips it)")
+    parser.add_argument("--fused-independent-sizes", type=int, nargs="*", default=[SIZES[0]],
+                        help="sizes also run with independently scattered components (default 100000)")
+    parser.add_argument("--fused-recall-queries", type=int, default=16,
+                        help="queries whose fused top 10 is checked against the exact scan (default 16)")
     parser.add_argument("--graph-sizes", type=int, nargs="*", default=list(GRAPH_SIZES),
                         help="rows for the k-NN graph timings (default 10000 100000)")
     parser.add_argument("--dask-meshes", type=int, default=200,
@@ -89,8 +96,17 @@ def _worker(spec_path: str) -> None:
         with ShapeIndex(spec["db"]) as idx:
             vs = idx.vector_set(spec["descriptor"])
             out.update(seconds=time.perf_counter() - t0, nlist=vs.nlist, n=vs.n, d=vs.d)
+    elif spec["action"] == "build-fused":
+        with ShapeIndex(spec["db"]) as idx:
+            sets = [idx.vector_set(c) or idx.vector_set(c, lower_bound=True) for c in spec["components"]]
+            out.update(seconds=time.perf_counter() - t0, n=max(vs.n for vs in sets if vs is not None))
     else:
-        Q = np.load(spec["queries"])
+        if spec["descriptor"] == "fused":
+            with np.load(spec["queries"]) as z:
+                parts = {c: z[c] for c in z.files}
+            Q = [{c: v[i] for c, v in parts.items()} for i in range(len(next(iter(parts.values()))))]
+        else:
+            Q = np.load(spec["queries"])
         times, found = [], []
         with ShapeIndex(spec["db"], search=spec["mode"]) as idx:
             for q in Q:
@@ -187,7 +203,10 @@ def run(args) -> int:
     d = len(template)
     rng = np.random.default_rng(args.seed + 1)
     search_rows, build_rows, graph_rows, dask_rows = [], [], [], []
+    fused_rows, fused_build = [], []
     try:
+        if args.fused_sizes:
+            fused_rows, fused_build = _fused_scale(work, args)
         for n in args.sizes:
             db = work / f"rows{n}.db"
             for p in work.glob(f"rows{n}.db*"):
@@ -290,6 +309,19 @@ def run(args) -> int:
         markdown_table(["rows", "d", "insert s", "rows/s", "sidecar build s", "build peak RSS MB",
                         "sidecar MB", "IVF lists", "incremental s", "auto"], build_rows),
     ]
+    if fused_rows:
+        from geoshape.retrieval.index import FUSED_CANDIDATES, FUSED_SAMPLE, FUSED_SCAN_MAX
+
+        md += ["", "**The default query (`fused`) at scale** (synthetic rows of all five components, "
+               f"see `_fused_chunk`; above {FUSED_SCAN_MAX} shapes a query scores the {FUSED_CANDIDATES} "
+               "nearest of each sidecar component + a sample of "
+               f"{FUSED_SAMPLE} shapes for the medians, pcavox rows read by primary key; "
+               "recall@10 against the exact fused scan of all rows, `fuse_distances` on full "
+               "distance rows; one fresh process, `search=\"auto\"`):", "",
+               markdown_table(["rows", "scatter", "first ms", "median ms", "p95 ms", "recall@10",
+                               "RSS growth MB"], fused_rows),
+               "", markdown_table(["rows", "scatter", "descriptors", "insert s", "database MB",
+                                   "sidecars build s", "build peak RSS MB", "sidecars MB"], fused_build)]
     if graph_rows:
         md += ["", f"**k-nearest-neighbour graph** (K = {GRAPH_K}, exact; built on the first "
                "`--rerank lcdp`: all pairs up to 20,000 rows, pruned by IVF lists above; then kept "
@@ -344,3 +376,178 @@ def _dask_add(work, args) -> list[list]:
                         round(rate, 2), f"{hours:.1f} h"])
             print(f"dask {label}: {rep.added} rows added, {rep.skipped} skipped in {sec:.1f} s", flush=True)
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# The fused default at scale
+# ---------------------------------------------------------------------------------------
+
+#: rows generated (and inserted) at a time
+FUSED_CHUNK = 10_000
+#: shape parameters shared by a synthetic row's descriptors (see :func:`_fused_chunk`)
+FUSED_LATENT = 8
+#: fraction of synthetic clusters whose two largest principal spreads are near-equal
+#: (pcavox then also tries the swaps of those axes, as for roundish real objects)
+FUSED_DEGENERATE = 0.25
+
+
+def _fused_templates(seed: int) -> dict:
+    """The fused method's component descriptors of a generated mesh (lengths and scales)."""
+    import numpy as np
+    import trimesh
+
+    from geoshape.retrieval.descriptors import FUSIONS, compute_descriptor_set
+
+    names = [c for c, w in FUSIONS["fused"].items() if w > 0]
+    m = trimesh.creation.icosphere(3)
+    desc, _ = compute_descriptor_set(m.vertices * [1.0, 1.6, 0.7], m.faces, names, seed=seed)
+    return {c: np.ravel(desc[c]) for c in names}
+
+
+def _fused_centres(templates: dict, clusters: int, seed: int) -> dict:
+    """Cluster centres per component: the template scattered log-normally (σ = 0.5); pcavox
+    grids renormalised, spreads the template's or, for :data:`FUSED_DEGENERATE` of the
+    clusters, ``(1, 0.9, 0.5)``."""
+    import numpy as np
+
+    rng = np.random.default_rng([seed, clusters])
+    out = {}
+    for c, t in templates.items():
+        C = t * np.exp(0.5 * rng.standard_normal((clusters, len(t))))
+        if c == "pcavox":
+            G = C[:, :-3]
+            G /= np.linalg.norm(G, axis=1, keepdims=True)
+            C[:, -3:] = t[-3:]
+            C[rng.random(clusters) < FUSED_DEGENERATE, -3:] = (1.0, 0.9, 0.5)
+        out[c] = C
+    return out
+
+
+def _fused_chunk(centres: dict, n: int, start: int, stop: int, seed: int, shared: bool = True) -> dict:
+    """Rows ``start:stop`` of the synthetic collection of ``n`` rows (the same every call):
+    each a cluster centre scattered by 5 % log-normally (pcavox grids renormalised, spreads
+    kept). ``shared``: one shape's descriptors vary together — the scatter of every
+    component is a fixed random linear image (per component) of the row's own
+    :data:`FUSED_LATENT` shape parameters, plus 1 % independent noise; otherwise each
+    component is scattered independently (its near neighbours unrelated to the others')."""
+    import numpy as np
+
+    rng = np.random.default_rng([seed, n, start])
+    clusters = len(next(iter(centres.values())))
+    which = rng.integers(0, clusters, stop - start)
+    z = rng.standard_normal((stop - start, FUSED_LATENT))
+    out = {}
+    for j, (c, C) in enumerate(centres.items()):
+        if shared:
+            A = np.random.default_rng([seed, 99, j]).standard_normal((FUSED_LATENT, C.shape[1]))
+            noise = 0.05 * (z @ A) / np.sqrt(FUSED_LATENT)
+            noise += 0.01 * rng.standard_normal(noise.shape)
+        else:
+            noise = 0.05 * rng.standard_normal((stop - start, C.shape[1]))
+        X = C[which] * np.exp(noise)
+        if c == "pcavox":
+            X[:, -3:] = C[which, -3:]
+            X[:, :-3] /= np.linalg.norm(X[:, :-3], axis=1, keepdims=True)
+        out[c] = X
+    return out
+
+
+def _fused_truth(centres: dict, n: int, seed: int, queries: dict, *, top: int = 10,
+                 shared: bool = True) -> list[set]:
+    """Exact fused top-``top`` of each query over all ``n`` rows: every component's distances
+    to every row (chunks regenerated), fused by ``fuse_distances`` (the definition)."""
+    import numpy as np
+
+    from geoshape.retrieval.descriptors import FUSIONS, descriptor_distances
+    from geoshape.retrieval.fusion import fuse_distances
+
+    weights = {c: w for c, w in FUSIONS["fused"].items() if w > 0}
+    nq = len(next(iter(queries.values())))
+    mats = {c: np.empty((nq, n)) for c in weights}
+    for s in range(0, n, FUSED_CHUNK):
+        chunk = _fused_chunk(centres, n, s, min(n, s + FUSED_CHUNK), seed, shared)
+        for c in weights:
+            for a in range(0, nq, 8):  # pcavox: at most 8 queries a product
+                mats[c][a : a + 8, s : s + len(chunk[c])] = descriptor_distances(c, queries[c][a : a + 8],
+                                                                                 chunk[c])
+    D = fuse_distances(mats, weights, all_pairs=False)
+    return [{_names(int(k), int(k) + 1)[0] for k in np.argsort(row, kind="stable")[:top]} for row in D]
+
+
+def _fused_scale(work, args) -> tuple[list, list]:
+    """The default (fused) query over ``args.fused_sizes`` synthetic rows: fill, sidecar
+    build, query times in a fresh process, recall@10 against the exact fused scan."""
+    import shutil
+    import time
+    from pathlib import Path
+
+    import numpy as np
+
+    from geoshape.retrieval.descriptors import descriptor_params, params_key
+
+    templates = _fused_templates(args.seed)
+    pkeys = {c: params_key(descriptor_params(c)) for c in templates}
+    query_rows, build_rows = [], []
+    rng = np.random.default_rng(args.seed + 11)
+    runs = [(n, True) for n in args.fused_sizes] + [(n, False) for n in args.fused_independent_sizes]
+    for n, shared in runs:
+        db = work / f"fused{n}.db"
+        for p in work.glob(f"fused{n}.db*"):
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        centres = _fused_centres(templates, max(10, n // 200), args.seed)
+        picks = np.sort(rng.choice(n, args.queries, replace=False))
+        picked = {c: [] for c in templates}
+        t0 = time.perf_counter()
+        from geoshape.retrieval.index import ShapeIndex
+
+        with ShapeIndex(db) as idx:
+            for s in range(0, n, FUSED_CHUNK):
+                stop = min(n, s + FUSED_CHUNK)
+                chunk = _fused_chunk(centres, n, s, stop, args.seed, shared)
+                names = _names(s, stop)
+                idx.insert_rows((p, c, pkeys[c], "0" * 64, x, 0.0)
+                                for c in templates for p, x in zip(names, chunk[c], strict=True))
+                mine = picks[(picks >= s) & (picks < stop)] - s
+                for c in templates:
+                    picked[c].append(chunk[c][mine])
+                if (s // FUSED_CHUNK) % 10 == 9:
+                    print(f"  {stop} / {n} rows inserted ({time.perf_counter() - t0:.0f} s)", flush=True)
+        t_insert = time.perf_counter() - t0
+        db_mb = sum(f.stat().st_size for f in work.glob(f"fused{n}.db*") if f.is_file()) / 2**20
+        print(f"fused: {n} rows x {len(templates)} descriptors inserted in {t_insert:.0f} s, "
+              f"{db_mb:.0f} MB", flush=True)
+        queries = {}
+        for c, parts in picked.items():
+            Q = np.concatenate(parts)
+            noise = np.exp(0.02 * rng.standard_normal(Q.shape))
+            if c == "pcavox":
+                noise[:, -3:] = 1.0
+            Q = Q * noise
+            if c == "pcavox":
+                Q[:, :-3] /= np.linalg.norm(Q[:, :-3], axis=1, keepdims=True)
+            queries[c] = Q
+        np.savez(work / "fused_queries.npz", **queries)
+        built = _in_fresh_process(work, f"fbuild{n}", {"action": "build-fused", "db": str(db),
+                                                        "components": list(templates)})
+        sidecar_mb = sum(f.stat().st_size for f in Path(str(db) + ".ann").glob("*.vec")) / 2**20
+        print(f"  sidecars built in {built['seconds']:.1f} s, {sidecar_mb:.0f} MB", flush=True)
+        res = _in_fresh_process(work, f"fq{n}", {"action": "query", "db": str(db), "descriptor": "fused",
+                                                 "mode": "auto", "queries": str(work / "fused_queries.npz"),
+                                                 "top": 10})
+        times = 1000 * np.asarray(res["times"])
+        t0 = time.perf_counter()
+        m = min(args.fused_recall_queries, args.queries)
+        truth = _fused_truth(centres, n, args.seed, {c: Q[:m] for c, Q in queries.items()}, shared=shared)
+        t_truth = time.perf_counter() - t0
+        recall = float(np.mean([len(set(f) & t) / 10 for f, t in zip(res["found"][:m], truth, strict=True)]))
+        scatter = "shared" if shared else "independent"
+        query_rows.append([n, scatter, round(1000 * res["first"]), round(float(np.median(times)), 2),
+                           round(float(np.percentile(times, 95)), 2), f"{recall:.3f} ({m} queries)",
+                           round(res["rss_growth"])])
+        build_rows.append([n, scatter, len(templates), round(t_insert), round(db_mb),
+                           round(built["seconds"], 1), round(built["hwm"]), round(sidecar_mb)])
+        print(f"  fused query: median {np.median(times):.1f} ms, p95 {np.percentile(times, 95):.1f} ms, "
+              f"recall@10 {recall:.3f} (exact scan {t_truth:.0f} s)", flush=True)
+        for p in work.glob(f"fused{n}.db*"):
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+    return query_rows, build_rows

@@ -448,6 +448,7 @@ class VectorSet:
     nbd: np.ndarray | None = None
     _sqn_max: float = field(default=-1.0, repr=False)
     _cn: np.ndarray | None = field(default=None, repr=False)  # centroid squared norms
+    _by_hash: tuple | None = field(default=None, repr=False)  # (rows in hash order, sorted hashes)
 
     # -- basics ------------------------------------------------------------------------
     @property
@@ -495,6 +496,39 @@ class VectorSet:
             if p in wanted:
                 out[p] = r
         return out
+
+    def rows_of(self, paths) -> np.ndarray:
+        """Row of each of ``paths``, ``-1`` where not stored: a binary search of its hash in
+        the rows sorted by hash (sorted once per loaded set, O(N log N)), then checked
+        against the path; O(P log N) for P paths."""
+        paths = list(paths)
+        out = np.full(len(paths), -1, dtype=np.int64)
+        if not paths or self.n == 0:
+            return out
+        if self._by_hash is None:
+            order = np.argsort(np.asarray(self.hashes), kind="stable")
+            self._by_hash = (order, np.asarray(self.hashes)[order])
+        order, sorted_hashes = self._by_hash
+        want = path_hashes(paths)
+        lo = np.searchsorted(sorted_hashes, want, side="left")
+        hi = np.searchsorted(sorted_hashes, want, side="right")
+        for j, (a, b) in enumerate(zip(lo.tolist(), hi.tolist(), strict=True)):
+            for r in order[a:b].tolist():  # almost always one row; collisions checked
+                if self.path(r) == paths[j]:
+                    out[j] = r
+                    break
+        return out
+
+    def sample_rows(self, size: int) -> np.ndarray:
+        """Rows of the ``size`` smallest path hashes, ascending: a pseudo-random sample that
+        does not depend on insertion order or list grouping, and changes little when rows
+        are added or removed. O(N)."""
+        size = min(int(size), self.n)
+        if size <= 0:
+            return np.zeros(0, dtype=np.int64)
+        hashes = np.asarray(self.hashes)
+        rows = np.argpartition(hashes, size - 1)[:size] if size < self.n else np.arange(self.n)
+        return np.sort(rows).astype(np.int64)
 
     def _eps(self, extra_sqn) -> np.ndarray:
         """Allowance for float32 rounding of squared embedding distances."""
@@ -602,6 +636,9 @@ class VectorSet:
         if meta.get("graph_k", 0) not in (0, GRAPH_K):
             a.pop("nbr", None)
             a.pop("nbd", None)
+        # plain ndarray views of the mapped file: the same pages, without np.memmap's
+        # per-indexing overhead (5 µs a call: it dominated looking up a few hundred paths)
+        a = {name: np.asarray(v) for name, v in a.items()}
         return cls(meta, a["X"], a["E"], a["sqn"], a["hashes"], a["blob"], a["off"], a["lists"], a["C"],
                    a["loff"], a.get("nbr"), a.get("nbd"))
 

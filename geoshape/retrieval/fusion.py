@@ -41,7 +41,7 @@ import numpy as np
 from geoshape.errors import InvalidOptionError
 
 __all__ = ["FUSED_WEIGHTS", "FUSED_GAP_REFERENCE", "FUSED_POWER", "FUSED_K", "GAP_FLOOR",
-           "fuse_distances", "query_gaps", "typical_gaps", "check_weights"]
+           "fuse_distances", "fuse_estimated_row", "query_gaps", "typical_gaps", "check_weights"]
 
 #: Component weights of the ``fused`` retrieval method: the "grid best on all collections" of
 #: ``geoshape bench fusion`` (pool evd_heat, shapedna, lfd, shd, wks, pcavox on the 1/8 grid,
@@ -155,6 +155,67 @@ def _normalised_gaps(D: np.ndarray, k: int, all_pairs: bool) -> tuple[np.ndarray
     S = np.where(mask, N, np.inf) if all_pairs else N
     near = np.partition(S, kk - 1, axis=1)[:, :kk] if kk < S.shape[1] else S
     return N, 1.0 - near.mean(axis=1)
+
+
+def _query_weights(gaps: dict, w: dict, ref: dict, power: float, adaptive: bool) -> np.ndarray:
+    """``(C, Q)`` per-query component weights ``w_c g_c(q) / Σ_c' w_c' g_c'(q)`` from the raw
+    gaps (``{name: (Q,)}``, components in that order); ``adaptive=False``: ``w_c / Σ w``."""
+    scores = []
+    for name, gap in gaps.items():
+        if adaptive:
+            r = float(ref.get(name, 1.0))
+            if not (math.isfinite(r) and r > 0):
+                raise InvalidOptionError(f"reference gap of {name!r} must be positive and finite, got {r!r}")
+            g = np.maximum(np.asarray(gap, dtype=np.float64) / r, GAP_FLOOR) ** power
+        else:
+            g = np.ones(np.shape(gap))
+        scores.append(w[name] * g)
+    W = np.array(scores)
+    return W / W.sum(axis=0)
+
+
+def fuse_estimated_row(distances: dict, sample: dict, nearest: dict, weights: dict, *,
+                       reference: dict | None = None, power: float = FUSED_POWER) -> np.ndarray:
+    """One query's fused distances to some database items, the database's statistics given.
+
+    The query row of :func:`fuse_distances` when the query's distances to the *whole*
+    database are not at hand (a large index scores only a candidate list): each component's
+    median distance over the database and its ``k`` smallest distances come from elsewhere
+    (estimates: the median over a fixed sample of stored shapes, the nearest items of the
+    component's own nearest-neighbour search), and the same rule turns them into per-query
+    weights. Given the whole database as the sample and its exact nearest distances, it is
+    the ``(1, M)`` row of :func:`fuse_distances` on the items passed.
+
+    Parameters
+    ----------
+    distances : dict {name: (M,) array}
+        The query's distances to the ``M`` items scored, per component (finite, ≥ 0).
+    sample : dict {name: (S,) array}
+        The query's distances to a sample of the database, per component: the median over
+        it is the component's scale (as in :func:`fuse_distances`, the smallest positive
+        entry if the median is 0).
+    nearest : dict {name: array}
+        The query's smallest distances in the database (its :data:`FUSED_K` nearest items).
+    weights, reference, power
+        As :func:`fuse_distances` (adaptive weighting).
+
+    Returns
+    -------
+    (M,) float64
+    """
+    w = check_weights(weights, list(distances))
+    used = [n for n in distances if w[n] > 0]
+    if not used:
+        raise InvalidOptionError("fusion weights are all zero for the components given")
+    normed, gaps = [], {}
+    for name in used:
+        med = float(_row_scale(_check_matrix(name, np.reshape(sample[name], (1, -1))), None)[0])
+        normed.append(_check_matrix(name, np.reshape(distances[name], (1, -1)))[0] / med)
+        near = np.asarray(nearest[name], dtype=np.float64)
+        gaps[name] = np.array([1.0 - float(np.mean(near)) / med])
+    ref = FUSED_GAP_REFERENCE if reference is None else reference
+    W = _query_weights(gaps, w, ref, float(power), True)[:, 0]
+    return sum(Wc * N for Wc, N in zip(W, normed, strict=True))
 
 
 def query_gaps(D, *, k: int = FUSED_K, all_pairs: bool | None = None) -> np.ndarray:
@@ -283,20 +344,11 @@ def fuse_distances(matrices: dict, weights: dict, *, k: int = FUSED_K, adaptive:
     if (M - 1 if all_pairs else M) < 1:
         raise InvalidOptionError("fusion needs at least one database item besides the query")
     used = [n for n in mats if w[n] > 0]
-    normed, scores = [], []
+    normed, gaps = [], {}
     for name in used:
-        N, gap = _normalised_gaps(mats[name], k, all_pairs)
+        N, gaps[name] = _normalised_gaps(mats[name], k, all_pairs)
         normed.append(N)
-        if adaptive:
-            r = float(ref.get(name, 1.0))
-            if not (math.isfinite(r) and r > 0):
-                raise InvalidOptionError(f"reference gap of {name!r} must be positive and finite, got {r!r}")
-            g = np.maximum(gap / r, GAP_FLOOR) ** power
-        else:
-            g = np.ones(Q)
-        scores.append(w[name] * g)
-    W = np.array(scores)
-    W /= W.sum(axis=0)
+    W = _query_weights(gaps, w, ref, power, adaptive)
     out = np.zeros(shape)
     for Wc, N in zip(W, normed, strict=True):
         out += Wc[:, None] * N

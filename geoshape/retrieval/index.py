@@ -51,9 +51,13 @@ one and two writers never both rebuild; ``add`` and ``prune`` refresh the sideca
 sets they change and trim the log up to the version saved. A folder that cannot be written
 only costs speed: the sidecar is then kept in memory.
 
-Descriptors that are not vectors (CCD, LFD), or ``search="memory"``, load the stored
-descriptors of one set into memory once (re-loaded when the index changes) and rank them
-with the descriptor's metric: O(N) descriptor distances per query.
+Descriptors that are not vectors (CCD, LFD, pcavox), or ``search="memory"``, load the
+stored descriptors of one set into memory once (re-loaded when the index changes) and rank
+them with the descriptor's metric: O(N) descriptor distances per query. A non-vector
+descriptor with a Euclidean lower bound (pcavox:
+:func:`geoshape.retrieval.descriptors.lower_bound_embedding`) also gets a sidecar of those
+short vectors, the same machinery with metric L2, which the fused default searches for
+candidates above :data:`FUSED_SCAN_MAX` stored shapes (:meth:`ShapeIndex._fused_candidates`).
 """
 
 from __future__ import annotations
@@ -104,6 +108,14 @@ DUPLICATE_DISTANCE = 1e-12
 
 #: diffusion re-ranking gathers the shortlist's neighbours and theirs from the stored graph
 DIFFUSION_HOPS = 2
+#: a fused query scans every stored shape exactly up to this many (all components' distances,
+#: exact medians); above, it scores a candidate list (:meth:`ShapeIndex._fused_candidates`:
+#: about FUSED_SAMPLE + 5 FUSED_CANDIDATES = 416 shapes, so the two cost the same order here)
+FUSED_SCAN_MAX = 1000
+#: above :data:`FUSED_SCAN_MAX`: nearest stored shapes taken from each vector component
+FUSED_CANDIDATES = 32
+#: above :data:`FUSED_SCAN_MAX`: stored shapes whose distances give each component's median
+FUSED_SAMPLE = 256
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -670,33 +682,45 @@ class ShapeIndex:
     def _sidecar_folder(self) -> Path:
         return Path(str(self.path) + ".ann")
 
-    def _sidecar_path(self, descriptor: str, pkey: str) -> Path:
-        return self._sidecar_folder() / f"{descriptor}-{hashlib.sha256(pkey.encode()).hexdigest()[:16]}.vec"
+    def _sidecar_path(self, descriptor: str, pkey: str, lower_bound: bool = False) -> Path:
+        kind = "-lb" if lower_bound else ""
+        digest = hashlib.sha256(pkey.encode()).hexdigest()[:16]
+        return self._sidecar_folder() / f"{descriptor}{kind}-{digest}.vec"
 
-    def _load_sidecar(self, descriptor: str, pkey: str, index_id: str):
+    def _load_sidecar(self, descriptor: str, pkey: str, index_id: str, lower_bound: bool = False):
         """The sidecar file of a set if it is whole and belongs to this index and set."""
         from geoshape.retrieval.ann import VectorSet
 
         try:
-            vs = VectorSet.load(self._sidecar_path(descriptor, pkey))
+            vs = VectorSet.load(self._sidecar_path(descriptor, pkey, lower_bound))
         except (OSError, ValueError, KeyError, TypeError):
             return None
         m = vs.meta
-        if (m.get("index_id"), m.get("descriptor"), m.get("params")) != (index_id, descriptor, pkey):
+        if (m.get("index_id"), m.get("descriptor"), m.get("params"), bool(m.get("lower_bound"))) != \
+                (index_id, descriptor, pkey, lower_bound):
             return None
         return vs
 
     def _vectors(self, descriptor: str, pkey: str, *, graph: bool = False, persist: bool = True,
-                 trim: bool = False):
+                 trim: bool = False, lower_bound: bool = False):
         """The up-to-date :class:`~geoshape.retrieval.ann.VectorSet` of a set, or None for a set
         that is not searched through a sidecar (not a vector metric, ragged shapes, or
         ``search="memory"``). ``graph``: with its k-nearest-neighbour graph. ``persist``: save
-        it (under the file lock); ``trim``: then drop the log up to the saved version."""
+        it (under the file lock); ``trim``: then drop the log up to the saved version.
+        ``lower_bound``: instead, the set of the descriptor's lower-bound vectors
+        (:func:`~geoshape.retrieval.descriptors.lower_bound_embedding`, metric L2; None for a
+        descriptor without one), a candidate generator for a descriptor that is not a vector."""
         from geoshape.retrieval.ann import VECTOR_METRICS, file_lock
-        from geoshape.retrieval.descriptors import get_descriptor
+        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_embedding
 
-        if self.search_mode == "memory" or get_descriptor(descriptor).metric not in VECTOR_METRICS:
+        if self.search_mode == "memory":
             return None
+        if lower_bound:
+            if lower_bound_embedding(descriptor) is None:
+                return None
+        elif get_descriptor(descriptor).metric not in VECTOR_METRICS:
+            return None
+        cache_key = (pkey, "lower bound") if lower_bound else pkey
         with self._reading():
             set_id, version, floor = self._set_version(descriptor, pkey)
             index_id = self._index_id()
@@ -705,15 +729,15 @@ class ShapeIndex:
             return (vs is not None and vs.meta.get("index_id") == index_id and vs.version == version
                     and (vs.has_graph or not graph))
 
-        cached = self._vectors_cache.get(pkey)
+        cached = self._vectors_cache.get(cache_key)
         if cached is not None and cached[0] == (index_id, version) and cached[1] is None:
             return None  # ragged at this version
         vs = cached[1] if cached is not None else None
         if usable(vs) and not trim:
             return vs
-        disk = self._load_sidecar(descriptor, pkey, index_id)
+        disk = self._load_sidecar(descriptor, pkey, index_id, lower_bound)
         if usable(disk) and not trim:
-            self._vectors_cache[pkey] = ((index_id, version), disk)
+            self._vectors_cache[cache_key] = ((index_id, version), disk)
             return disk
         folder = self._sidecar_folder()
         try:
@@ -724,22 +748,22 @@ class ShapeIndex:
         lock = file_lock(folder / ".lock", self.timeout) if persist else contextlib.nullcontext(False)
         with lock as locked:
             if locked:  # another process may have brought it up to date meanwhile
-                disk = self._load_sidecar(descriptor, pkey, index_id)
+                disk = self._load_sidecar(descriptor, pkey, index_id, lower_bound)
             # the base to bring up to date: one that can be, keeping a graph once there is one
             bases = [b for b in (vs, disk) if b is not None and b.meta.get("index_id") == index_id]
             base = max(bases, key=lambda b: (floor <= b.version <= version, b.has_graph, b.version),
                        default=None)
-            out, version = self._synced(descriptor, pkey, base)
+            out, version = self._synced(descriptor, pkey, base, lower_bound)
             if out is not None and graph and not out.has_graph:
                 out.build_graph()
             key = (index_id, version)
-            self._vectors_cache[pkey] = (key, out)
+            self._vectors_cache[cache_key] = (key, out)
             if out is None or not locked:
                 return out
             saved = disk is not None and disk.version == out.version and (disk.has_graph or not out.has_graph)
             if not saved:
                 try:
-                    out.save(self._sidecar_path(descriptor, pkey))
+                    out.save(self._sidecar_path(descriptor, pkey, lower_bound))
                     saved = True
                 except OSError:
                     pass
@@ -750,11 +774,25 @@ class ShapeIndex:
                     conn.execute("UPDATE sets SET floor = MAX(floor, ?) WHERE id = ?", (out.version, set_id))
         return out
 
-    def _synced(self, descriptor: str, pkey: str, base):
+    def _synced(self, descriptor: str, pkey: str, base, lower_bound: bool = False):
         """``(VectorSet or None, version)``: ``base`` brought up to the current version from
-        the logged changes, or the set rebuilt from SQLite when ``base`` cannot be."""
+        the logged changes, or the set rebuilt from SQLite when ``base`` cannot be.
+        ``lower_bound``: the rows are the descriptor's lower-bound vectors (read and
+        embedded 10,000 rows at a time: the stored rows are never all in memory)."""
         from geoshape.retrieval.ann import VectorSet
-        from geoshape.retrieval.descriptors import get_descriptor
+        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_embedding
+
+        embed_rows = lower_bound_embedding(descriptor) if lower_bound else None
+        paths, shapes, parts = [], set(), []
+
+        def take(cursor):  # rows -> paths, shapes, (embedded) float64 blocks, 10,000 at a time
+            while batch := cursor.fetchmany(10_000):
+                shapes.update(r[1] for r in batch)
+                if len(shapes) > 1:  # ragged: nothing to build
+                    return
+                paths.extend(r[0] for r in batch)
+                X = np.frombuffer(b"".join(r[2] for r in batch), dtype=np.float64).reshape(len(batch), -1)
+                parts.append(embed_rows(X) if embed_rows is not None else X)
 
         with self._reading() as conn:
             set_id, version, floor = self._set_version(descriptor, pkey)
@@ -764,32 +802,33 @@ class ShapeIndex:
                     return base, version
                 changed = [r[0] for r in conn.execute(
                     "SELECT DISTINCT path FROM changes WHERE set_id = ? AND seq > ?", (set_id, base.version))]
-                rows = []
                 for s in range(0, len(changed), 500):
                     chunk = changed[s : s + 500]
-                    rows += conn.execute(
+                    take(conn.execute(
                         f"SELECT path, shape, data FROM entries WHERE descriptor = ? AND params = ? "
                         f"AND path IN ({', '.join('?' * len(chunk))}) ORDER BY path",
-                        (descriptor, pkey, *chunk)).fetchall()
+                        (descriptor, pkey, *chunk)))
                 full = False
             else:
-                rows = conn.execute("SELECT path, shape, data FROM entries WHERE descriptor = ? "
-                                    "AND params = ? ORDER BY path", (descriptor, pkey)).fetchall()
+                # sorted here rather than by SQLite, whose ORDER BY would build a temporary
+                # B-tree of every row (blobs included)
+                take(conn.execute("SELECT path, shape, data FROM entries WHERE descriptor = ? "
+                                  "AND params = ?", (descriptor, pkey)))
                 full = True
-        if full and not rows:
+        if full and not paths:
             return None, version
-        shapes = {r[1] for r in rows}
-        shape = json.loads(rows[0][1]) if rows else (base.meta["shape"] if base is not None else [])
-        if len(shapes) > 1 or (not full and base is not None and rows and shape != base.meta["shape"]):
+        shape = json.loads(next(iter(shapes))) if paths else (base.meta["shape"] if base is not None else [])
+        if len(shapes) > 1 or (not full and base is not None and paths and shape != base.meta["shape"]):
             if full:
                 return None, version
-            return self._synced(descriptor, pkey, None)  # a row of another shape: rebuild (ragged)
-        X = np.frombuffer(b"".join(r[2] for r in rows), dtype=np.float64).reshape(
-            len(rows), -1 if rows else base.d)
-        paths = [r[0] for r in rows]
+            return self._synced(descriptor, pkey, None, lower_bound)  # another shape: rebuild (ragged)
+        X = np.concatenate(parts) if parts else np.zeros((0, base.d))
         if full:
+            order = sorted(range(len(paths)), key=paths.__getitem__)
+            paths, X = [paths[i] for i in order], X[order]
             meta = {"index_id": index_id, "descriptor": descriptor, "params": pkey, "version": version,
-                    "metric": get_descriptor(descriptor).metric, "shape": shape}
+                    "metric": "l2" if lower_bound else get_descriptor(descriptor).metric, "shape": shape,
+                    "lower_bound": lower_bound}
             return VectorSet.build(meta, paths, X), version
         return base.updated(changed, paths, X, version), version
 
@@ -798,16 +837,18 @@ class ShapeIndex:
         failure only means the next query does it)."""
         with contextlib.suppress(OSError, sqlite3.Error, DatasetError, ValueError):
             self._vectors(descriptor, pkey, persist=True, trim=True)
+            self._vectors(descriptor, pkey, persist=True, trim=True, lower_bound=True)
 
     def vector_set(self, descriptor: str, *, affinity: str | None = None, seed: int = 0,
-                   graph: bool = False):
+                   graph: bool = False, lower_bound: bool = False):
         """The up-to-date sidecar of a stored vector descriptor set (for benchmarks and
-        inspection), or None when that set is searched in memory."""
+        inspection), or None when that set is searched in memory. ``lower_bound``: the set
+        of a non-vector descriptor's lower-bound vectors (``pcavox``) instead."""
         from geoshape.retrieval.descriptors import descriptor_params, get_descriptor, params_key
 
         spec = get_descriptor(descriptor)
         pkey = params_key(descriptor_params(descriptor, affinity if spec.uses_affinity else None, seed))
-        return self._vectors(descriptor, pkey, graph=graph)
+        return self._vectors(descriptor, pkey, graph=graph, lower_bound=lower_bound)
 
     # -- querying ------------------------------------------------------------------------
     def _state(self) -> tuple:
@@ -985,6 +1026,7 @@ class ShapeIndex:
             descriptor_distances,
             descriptor_params,
             get_descriptor,
+            params_key,
         )
         from geoshape.retrieval.fusion import fuse_distances
 
@@ -992,6 +1034,12 @@ class ShapeIndex:
         if not isinstance(q, Mapping) or any(c not in q for c in weights):
             raise InvalidOptionError(f"a {method!r} query needs the descriptors {', '.join(weights)} "
                                      "of the query, by name")
+        pkeys = {c: params_key(descriptor_params(c, affinity if get_descriptor(c).uses_affinity else None,
+                                                 seed)) for c in weights}
+        sets = {c: self._vectors(c, pkeys[c]) for c in weights}
+        if max((vs.n for vs in sets.values() if vs is not None), default=0) > FUSED_SCAN_MAX:
+            bounds = {c: self._vectors(c, pkeys[c], lower_bound=True) for c in weights if sets[c] is None}
+            return self._fused_candidates(q, weights, want, sets, bounds, pkeys, skip_missing)
         stored = {}
         for c in weights:
             spec = get_descriptor(c)
@@ -1015,6 +1063,118 @@ class ShapeIndex:
         short = [(common[i], float(d[i])) for i in cand]
         rows = [{c: stored[c][1][stored[c][0][common[i]]] for c in weights} for i in cand]
         return short, rows
+
+    def _fused_candidates(self, q, weights: dict, want: int, sets: dict, bounds: dict, pkeys: dict,
+                          skip_missing: bool):
+        """:meth:`_fused_shortlist` for a large index: ``(short, rows)`` from a candidate list.
+
+        Candidates: the :data:`FUSED_CANDIDATES` (at least ``want``) nearest stored shapes of
+        each component searched through a sidecar (``sets[c]``; exact or IVF as the index
+        searches), the as many nearest by the lower-bound vectors of each component that has
+        them instead (``bounds[c]``: ``pcavox``), plus a fixed sample of :data:`FUSED_SAMPLE`
+        stored shapes (the smallest path hashes: :meth:`VectorSet.sample_rows`). Every
+        component's distances to them are computed — vector components from their sidecar
+        rows, the others from the SQLite rows of the candidates (the sample's rows cached per
+        set version) — and fused by :func:`geoshape.retrieval.fusion.fuse_estimated_row`: each
+        component's median over the sample, its nearest distances from its own search (for
+        the other components, the nearest among the scored shapes). A shape that is in no
+        component's candidate list is missed, and the sampled medians are estimates: the
+        ranking approximates the exact scan (recall measured by ``geoshape bench index``).
+
+        Cost: per component one search (exact O(N d), IVF O(√N d + scanned d)), then
+        O((C K + S) d) distances for C components, K candidates and S samples, and the other
+        components' rows of the candidates read by primary key; nothing else is O(N).
+        """
+        from geoshape.retrieval.ann import pair_distances
+        from geoshape.retrieval.descriptors import descriptor_distances, lower_bound_embedding
+        from geoshape.retrieval.fusion import FUSED_K, fuse_estimated_row
+
+        vec = {c: vs for c, vs in sets.items() if vs is not None}
+        k = max(int(want), FUSED_CANDIDATES)
+        near = {}
+        cands: dict[str, None] = {}
+        for c, vs in [*vec.items(), *((c, b) for c, b in bounds.items() if b is not None)]:
+            mode = self.search_mode
+            if mode == "auto":
+                mode = "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
+            qc = np.ravel(q[c]) if c in vec else \
+                lower_bound_embedding(c)(np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
+            pos, dist = vs.search(qc, k, mode=mode, nprobe=self.nprobe, min_scan=self.min_scan)
+            if c in vec:
+                near[c] = dist[:FUSED_K]
+            cands.update(dict.fromkeys(vs.paths(pos)))
+        sample, sample_rows = self._fused_sample(weights, vec, pkeys)
+        in_sample = set(sample)
+        paths = [p for p in cands if p not in in_sample]
+        rows_by_c = {}
+        for c in weights:  # the candidates' rows; a shape lacking a component is dropped
+            if c in vec:
+                rows = vec[c].rows_of(paths)
+                rows_by_c[c] = {p: r for p, r in zip(paths, rows.tolist(), strict=True) if r >= 0}
+            else:
+                rows_by_c[c] = self._stored_rows(c, pkeys[c], paths)
+            paths = [p for p in paths if p in rows_by_c[c]]
+        dists = {}
+        for c in weights:  # distances to the sample (first) and to the other candidates
+            if c in vec:
+                R = np.asarray(vec[c].X[[rows_by_c[c][p] for p in paths]])
+                dists[c] = np.concatenate([pair_distances(vec[c].metric, np.ravel(q[c]), S)
+                                           for S in (sample_rows[c], R)])
+            else:
+                R = np.asarray([rows_by_c[c][p] for p in paths]).reshape(-1, *sample_rows[c].shape[1:])
+                dists[c] = np.concatenate([descriptor_distances(c, [q[c]], S)[0] if len(S) else np.zeros(0)
+                                           for S in (sample_rows[c], R)])
+                near[c] = np.sort(dists[c])[:FUSED_K]
+        scored = sample + paths
+        d = fuse_estimated_row(dists, {c: v[: len(sample)] for c, v in dists.items()}, near, weights)
+        cand = _existing_nearest(d, scored, want, skip_missing, self.path)
+        short = [(scored[i], float(d[i])) for i in cand]
+        rows = []
+        for i in cand:
+            p = scored[i]
+            rows.append({c: (sample_rows[c][i] if i < len(sample) else
+                             np.asarray(vec[c].X[rows_by_c[c][p]]) if c in vec else rows_by_c[c][p])
+                         for c in weights})
+        return short, rows
+
+    def _fused_sample(self, weights: dict, vec: dict, pkeys: dict) -> tuple[list[str], dict]:
+        """The fixed sample of a large index's fused queries and its rows per component:
+        the :data:`FUSED_SAMPLE` smallest path hashes of the first sidecar component among
+        the shapes holding every component. Cached until one of the sets changes."""
+        with self._reading():
+            key = (FUSED_SAMPLE, *((c, self._set_version(c, pkeys[c])[1]) for c in weights))
+        held = self._cache.get("fused sample")
+        if held is not None and held[0] == key:
+            return held[1], held[2]
+        first = next(iter(vec.values()))
+        paths = first.paths(first.sample_rows(FUSED_SAMPLE))
+        rows = {}
+        for c in weights:
+            if c in vec:
+                r = vec[c].rows_of(paths)
+                rows[c] = dict(zip(paths, np.asarray(vec[c].X[np.maximum(r, 0)]), strict=True))
+                rows[c] = {p: x for (p, x), ok in zip(rows[c].items(), r >= 0, strict=True) if ok}
+            else:
+                rows[c] = self._stored_rows(c, pkeys[c], paths)
+            paths = [p for p in paths if p in rows[c]]
+        if not paths:
+            raise DatasetError(f"{self.path}: no stored shape has all of {', '.join(weights)}")
+        arrays = {c: np.stack([rows[c][p] for p in paths]) for c in weights}
+        self._cache["fused sample"] = (key, paths, arrays)
+        return paths, arrays
+
+    def _stored_rows(self, descriptor: str, pkey: str, paths) -> dict:
+        """``{path: row}`` of the stored rows of one set among ``paths`` (primary-key reads,
+        500 a statement)."""
+        out = {}
+        with self._reading() as conn:
+            for s in range(0, len(paths), 500):
+                chunk = paths[s : s + 500]
+                for path, shape, data in conn.execute(
+                        f"SELECT path, shape, data FROM entries WHERE descriptor = ? AND params = ? "
+                        f"AND path IN ({', '.join('?' * len(chunk))})", (descriptor, pkey, *chunk)):
+                    out[path] = np.frombuffer(data, dtype=np.float64).reshape(json.loads(shape))
+        return out
 
     def _diffusion_rerank(self, q, descriptor: str, method: str, short, top: int, *, vs, pos, rows):
         """Re-score the shortlist ``short`` by ``method`` over a local collection: the query,

@@ -73,6 +73,7 @@ __all__ = [
     "FUSIONS",
     "DEFAULT_RETRIEVAL_METHOD",
     "method_descriptors",
+    "lower_bound_embedding",
     "DEFAULT_AFFINITY",
     "CCD_POINTS",
     "get_descriptor",
@@ -592,6 +593,19 @@ def _compute(V, F, name: str, params: dict, seed: int, basis=None) -> np.ndarray
 # ---------------------------------------------------------------------------------------
 # Distances
 # ---------------------------------------------------------------------------------------
+
+
+def lower_bound_embedding(name: str):
+    """For a descriptor whose metric is not a vector distance but has a short Euclidean
+    lower bound (``pcavox``: :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_lower_bound_embedding`),
+    the function ``(N, ...) array -> (N, m) float64`` giving it; otherwise None. A large
+    index searches those vectors for candidates and re-scores them with the descriptor's
+    own distance."""
+    if get_descriptor(name).metric == "pcavox":
+        from geoshape.retrieval.descriptors.pcavox import pcavox_lower_bound_embedding
+
+        return pcavox_lower_bound_embedding
+    return None
 
 
 def descriptor_distances(name: str, queries, database) -> np.ndarray:
