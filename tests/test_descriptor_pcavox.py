@@ -169,32 +169,44 @@ def _random_pcavox(rng, n: int, R: int = 8) -> np.ndarray:
     return np.c_[G, S]
 
 
-def test_lower_bound_embedding_bounds_every_symmetry_and_is_invariant():
-    from geoshape.retrieval.descriptors.pcavox import pcavox_lower_bound_embedding
+def test_projection_bounds_bound_every_symmetry_and_the_embedding_is_invariant():
+    """The projection bound never exceeds the pcavox distance (any allowed symmetries), the
+    invariant embedding never exceeds the projection bound, and both are informative."""
+    from geoshape.retrieval.descriptors.pcavox import (
+        pcavox_projection,
+        pcavox_projection_distance,
+        pcavox_projection_embedding,
+    )
 
     rng = np.random.default_rng(4)
     X = _random_pcavox(rng, 30)
-    E = pcavox_lower_bound_embedding(X, frequencies=3)
+    P = pcavox_projection(X, frequencies=4)
+    assert P.shape == (30, 65)
+    L = np.array([pcavox_projection_distance(P[i], P) for i in range(30)])
+    assert np.allclose(L, pcavox_projection_distance(P[:, None], P[None]), atol=1e-6)  # broadcast form
+    E = pcavox_projection_embedding(P, frequencies=3)
     assert E.shape == (30, 27)
-    L = np.sqrt(((E[:, None] - E[None]) ** 2).sum(-1))
+    LE = np.sqrt(((E[:, None] - E[None]) ** 2).sum(-1))
+    assert np.all(LE <= L + 1e-7)
     for degenerate in (0.0, 0.8, 1.0):  # all 48 symmetries, the default rule, sign flips only
-        D = pcavox_distance_matrix(X, degenerate=degenerate)
-        assert np.all(L <= D + 1e-12)
-    # the same vector for a grid transformed by any of the 48 symmetries
+        assert np.all(L <= pcavox_distance_matrix(X, degenerate=degenerate) + 1e-7)  # (rounding at 0)
+    # the same bound and embedding for a grid transformed by any of the 48 symmetries
     _, cells = _symmetries(8)
     for perm in cells:
         Y = X.copy()
         Y[:, :-3] = X[:, :-3][:, perm]
-        assert np.allclose(pcavox_lower_bound_embedding(Y, frequencies=3), E, atol=1e-12)
-    # informative on real shapes: a good fraction of the distance between tables and rings
+        PY = pcavox_projection(Y, frequencies=4)
+        assert np.allclose(pcavox_projection_embedding(PY, frequencies=3), E, atol=1e-12)
+        assert np.allclose([pcavox_projection_distance(PY[i], P[i]) for i in range(30)], 0.0, atol=1e-6)
+    # informative on real shapes: most of the distance between tables and rings
     meshes = [f(np.random.default_rng(k)) for k in range(3) for f in (_table, _ring)]
     Xm = np.array([pcavox_descriptor(m.vertices, m.faces, resolution=8) for m in meshes])
-    Em = pcavox_lower_bound_embedding(Xm)
-    Lm = np.sqrt(((Em[:, None] - Em[None]) ** 2).sum(-1))
+    Pm = pcavox_projection(Xm, frequencies=4)
+    Lm = np.array([pcavox_projection_distance(Pm[i], Pm) for i in range(len(meshes))])
     iu = np.triu_indices(len(meshes), 1)
-    assert np.median(Lm[iu] / pcavox_distance_matrix(Xm)[iu]) > 0.3
+    assert np.median(Lm[iu] / pcavox_distance_matrix(Xm)[iu]) > 0.6
     with pytest.raises(InvalidOptionError, match="frequencies"):
-        pcavox_lower_bound_embedding(X, frequencies=9)
+        pcavox_projection(X, frequencies=9)
 
 
 def test_few_queries_against_many_rows_give_the_same_matrix():

@@ -17,7 +17,10 @@ distance ``p = ‖φ(a) − φ(b)‖`` bounds the descriptor's own distance from
   (Hellinger). Per entry ``(a − b)² / (a + b) = (√a − √b)² (√a + √b)² / (a + b)`` and the last
   factor lies in [1, 2], so ``p² / 2 ≤ χ² ≤ p²``;
 - L2: ``φ(x) = x``, ``p`` is the distance itself;
-- L1: ``φ(x) = x``, ``p ≤ L1 ≤ √d p``.
+- L1: ``φ(x) = x``, ``p ≤ L1 ≤ √d p``;
+- ``pcavox_lb`` (rows of a pcavox descriptor's cosine projection, searched for candidates
+  only): ``φ`` = the symmetry-invariant sorted magnitudes of the lowest coefficients,
+  ``p ≤`` the projection bound ``≤`` the pcavox distance.
 
 Search
 ------
@@ -78,6 +81,11 @@ __all__ = ["VECTOR_METRICS", "GRAPH_K", "VectorSet", "embed", "pair_distances", 
 
 #: descriptor metrics searched through a sidecar
 VECTOR_METRICS = ("chi2", "l1", "l2")
+#: metrics of lower-bound rows (:func:`geoshape.retrieval.descriptors.lower_bound_rows`):
+#: ``pcavox_lb`` is :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_projection_distance`,
+#: embedded by :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_projection_embedding`
+#: (its Euclidean distance bounds it from below, like L2's identity)
+BOUND_METRICS = ("pcavox_lb",)
 #: neighbours stored per row in the k-nearest-neighbour graph
 GRAPH_K = 10
 #: a query in ``ivf`` mode scans at least this many rows
@@ -103,6 +111,10 @@ def embed(metric: str, X) -> np.ndarray:
     X = np.asarray(X, dtype=np.float64)
     if metric == "chi2":
         return np.sqrt(np.abs(X)).astype(np.float32)
+    if metric == "pcavox_lb":
+        from geoshape.retrieval.descriptors.pcavox import pcavox_projection_embedding
+
+        return pcavox_projection_embedding(X).astype(np.float32)
     return X.astype(np.float32)
 
 
@@ -177,6 +189,10 @@ def pair_distances(metric: str, A, B) -> np.ndarray:
         return np.abs(A - B).sum(axis=-1)
     if metric == "l2":
         return np.sqrt(((A - B) ** 2).sum(axis=-1))
+    if metric == "pcavox_lb":
+        from geoshape.retrieval.descriptors.pcavox import pcavox_projection_distance
+
+        return pcavox_projection_distance(A, B)
     raise InvalidOptionError(f"metric {metric!r} is not a vector distance ({', '.join(VECTOR_METRICS)})")
 
 

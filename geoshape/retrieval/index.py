@@ -54,9 +54,9 @@ only costs speed: the sidecar is then kept in memory.
 Descriptors that are not vectors (CCD, LFD, pcavox), or ``search="memory"``, load the
 stored descriptors of one set into memory once (re-loaded when the index changes) and rank
 them with the descriptor's metric: O(N) descriptor distances per query. A non-vector
-descriptor with a Euclidean lower bound (pcavox:
-:func:`geoshape.retrieval.descriptors.lower_bound_embedding`) also gets a sidecar of those
-short vectors, the same machinery with metric L2, which the fused default searches for
+descriptor with cheap lower-bound rows (pcavox:
+:func:`geoshape.retrieval.descriptors.lower_bound_rows`) also gets a sidecar of those rows,
+the same machinery with their own metric, which the fused default searches for
 candidates above :data:`FUSED_SCAN_MAX` stored shapes (:meth:`ShapeIndex._fused_candidates`).
 """
 
@@ -116,6 +116,9 @@ FUSED_SCAN_MAX = 1000
 FUSED_CANDIDATES = 32
 #: above :data:`FUSED_SCAN_MAX`: stored shapes whose distances give each component's median
 FUSED_SAMPLE = 256
+#: above :data:`FUSED_SCAN_MAX`: candidates of a lower-bounded component (pcavox) read first,
+#: its best by the bound; their exact distances give its nearest items
+FUSED_LB_SEED = 8
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -695,9 +698,12 @@ class ShapeIndex:
             vs = VectorSet.load(self._sidecar_path(descriptor, pkey, lower_bound))
         except (OSError, ValueError, KeyError, TypeError):
             return None
+        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_rows
+
+        metric = lower_bound_rows(descriptor)[1] if lower_bound else get_descriptor(descriptor).metric
         m = vs.meta
-        if (m.get("index_id"), m.get("descriptor"), m.get("params"), bool(m.get("lower_bound"))) != \
-                (index_id, descriptor, pkey, lower_bound):
+        if (m.get("index_id"), m.get("descriptor"), m.get("params"), bool(m.get("lower_bound")),
+                m.get("metric")) != (index_id, descriptor, pkey, lower_bound, metric):
             return None
         return vs
 
@@ -707,16 +713,16 @@ class ShapeIndex:
         that is not searched through a sidecar (not a vector metric, ragged shapes, or
         ``search="memory"``). ``graph``: with its k-nearest-neighbour graph. ``persist``: save
         it (under the file lock); ``trim``: then drop the log up to the saved version.
-        ``lower_bound``: instead, the set of the descriptor's lower-bound vectors
-        (:func:`~geoshape.retrieval.descriptors.lower_bound_embedding`, metric L2; None for a
-        descriptor without one), a candidate generator for a descriptor that is not a vector."""
+        ``lower_bound``: instead, the set of the descriptor's lower-bound rows
+        (:func:`~geoshape.retrieval.descriptors.lower_bound_rows`; None for a descriptor
+        without them), a candidate generator for a descriptor that is not a vector."""
         from geoshape.retrieval.ann import VECTOR_METRICS, file_lock
-        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_embedding
+        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_rows
 
         if self.search_mode == "memory":
             return None
         if lower_bound:
-            if lower_bound_embedding(descriptor) is None:
+            if lower_bound_rows(descriptor) is None:
                 return None
         elif get_descriptor(descriptor).metric not in VECTOR_METRICS:
             return None
@@ -780,9 +786,9 @@ class ShapeIndex:
         ``lower_bound``: the rows are the descriptor's lower-bound vectors (read and
         embedded 10,000 rows at a time: the stored rows are never all in memory)."""
         from geoshape.retrieval.ann import VectorSet
-        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_embedding
+        from geoshape.retrieval.descriptors import get_descriptor, lower_bound_rows
 
-        embed_rows = lower_bound_embedding(descriptor) if lower_bound else None
+        embed_rows, metric = lower_bound_rows(descriptor) if lower_bound else (None, None)
         paths, shapes, parts = [], set(), []
 
         def take(cursor):  # rows -> paths, shapes, (embedded) float64 blocks, 10,000 at a time
@@ -827,7 +833,7 @@ class ShapeIndex:
             order = sorted(range(len(paths)), key=paths.__getitem__)
             paths, X = [paths[i] for i in order], X[order]
             meta = {"index_id": index_id, "descriptor": descriptor, "params": pkey, "version": version,
-                    "metric": "l2" if lower_bound else get_descriptor(descriptor).metric, "shape": shape,
+                    "metric": metric or get_descriptor(descriptor).metric, "shape": shape,
                     "lower_bound": lower_bound}
             return VectorSet.build(meta, paths, X), version
         return base.updated(changed, paths, X, version), version
@@ -1072,21 +1078,28 @@ class ShapeIndex:
         each component searched through a sidecar (``sets[c]``; exact or IVF as the index
         searches), the as many nearest by the lower-bound vectors of each component that has
         them instead (``bounds[c]``: ``pcavox``), plus a fixed sample of :data:`FUSED_SAMPLE`
-        stored shapes (the smallest path hashes: :meth:`VectorSet.sample_rows`). Every
-        component's distances to them are computed — vector components from their sidecar
-        rows, the others from the SQLite rows of the candidates (the sample's rows cached per
-        set version) — and fused by :func:`geoshape.retrieval.fusion.fuse_estimated_row`: each
-        component's median over the sample, its nearest distances from its own search (for
-        the other components, the nearest among the scored shapes). A shape that is in no
-        component's candidate list is missed, and the sampled medians are estimates: the
-        ranking approximates the exact scan (recall measured by ``geoshape bench index``).
+        stored shapes (the smallest path hashes: :meth:`VectorSet.sample_rows`). The vector
+        components' distances to them come from their sidecar rows (the sample's rows of every
+        component are cached per set version); they are fused by
+        :func:`geoshape.retrieval.fusion.fuse_estimated_row`: each component's median over the
+        sample, its nearest distances from its own search. A lower-bounded component's
+        descriptor is read from SQLite (primary key) only where it can matter — a random
+        read of a 32 KB pcavox row is the slowest step on a large, uncached index: first its
+        :data:`FUSED_LB_SEED` best candidates by the bound (their exact distances, with the
+        sample's, give its nearest items and so the query's weights), then, branch and bound,
+        every candidate whose fused distance with the bound in place of the exact one does
+        not exceed the ``want``-th exact fused distance so far, until none is left. So the
+        list is exactly the ``want`` best candidates for those weights. A shape that is in no
+        component's candidate list is missed, and the sampled medians and the bounded
+        component's nearest items are estimates: the ranking approximates the exact scan
+        (recall measured by ``geoshape bench index``).
 
         Cost: per component one search (exact O(N d), IVF O(√N d + scanned d)), then
-        O((C K + S) d) distances for C components, K candidates and S samples, and the other
-        components' rows of the candidates read by primary key; nothing else is O(N).
+        O((C K + S) d) distances for C components, K candidates and S samples, and a few
+        rows read by primary key; nothing else is O(N).
         """
         from geoshape.retrieval.ann import pair_distances
-        from geoshape.retrieval.descriptors import descriptor_distances, lower_bound_embedding
+        from geoshape.retrieval.descriptors import descriptor_distances, lower_bound_rows
         from geoshape.retrieval.fusion import FUSED_K, fuse_estimated_row
 
         vec = {c: vs for c, vs in sets.items() if vs is not None}
@@ -1098,7 +1111,7 @@ class ShapeIndex:
             if mode == "auto":
                 mode = "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
             qc = np.ravel(q[c]) if c in vec else \
-                lower_bound_embedding(c)(np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
+                lower_bound_rows(c)[0](np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
             pos, dist = vs.search(qc, k, mode=mode, nprobe=self.nprobe, min_scan=self.min_scan)
             if c in vec:
                 near[c] = dist[:FUSED_K]
@@ -1106,35 +1119,79 @@ class ShapeIndex:
         sample, sample_rows = self._fused_sample(weights, vec, pkeys)
         in_sample = set(sample)
         paths = [p for p in cands if p not in in_sample]
+        bounded = [c for c in weights if c not in vec and bounds.get(c) is not None]
         rows_by_c = {}
         for c in weights:  # the candidates' rows; a shape lacking a component is dropped
             if c in vec:
                 rows = vec[c].rows_of(paths)
                 rows_by_c[c] = {p: r for p, r in zip(paths, rows.tolist(), strict=True) if r >= 0}
+            elif c in bounded:  # rows of its lower-bound vectors; the descriptor is read later
+                rows = bounds[c].rows_of(paths)
+                rows_by_c[c] = {p: r for p, r in zip(paths, rows.tolist(), strict=True) if r >= 0}
             else:
                 rows_by_c[c] = self._stored_rows(c, pkeys[c], paths)
             paths = [p for p in paths if p in rows_by_c[c]]
+        ns = len(sample)
         dists = {}
         for c in weights:  # distances to the sample (first) and to the other candidates
             if c in vec:
                 R = np.asarray(vec[c].X[[rows_by_c[c][p] for p in paths]])
                 dists[c] = np.concatenate([pair_distances(vec[c].metric, np.ravel(q[c]), S)
                                            for S in (sample_rows[c], R)])
-            else:
+                continue
+            dists[c] = np.zeros(ns + len(paths))
+            dists[c][:ns] = descriptor_distances(c, [q[c]], sample_rows[c])[0]
+            if c in bounded:  # lower bounds until the candidate's row is read
+                qe = lower_bound_rows(c)[0](np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
+                R = np.asarray(bounds[c].X[[rows_by_c[c][p] for p in paths]])
+                dists[c][ns:] = pair_distances(bounds[c].metric, qe, R)
+            elif paths:
                 R = np.asarray([rows_by_c[c][p] for p in paths]).reshape(-1, *sample_rows[c].shape[1:])
-                dists[c] = np.concatenate([descriptor_distances(c, [q[c]], S)[0] if len(S) else np.zeros(0)
-                                           for S in (sample_rows[c], R)])
-                near[c] = np.sort(dists[c])[:FUSED_K]
+                dists[c][ns:] = descriptor_distances(c, [q[c]], R)[0]
         scored = sample + paths
-        d = fuse_estimated_row(dists, {c: v[: len(sample)] for c, v in dists.items()}, near, weights)
+        known = np.zeros(len(scored), dtype=bool)
+        known[:ns] = True
+        read: dict[str, dict] = {c: {} for c in bounded}
+
+        def read_rows(idx):  # exact distances of bounded components for candidates idx
+            idx = np.asarray(sorted(set(np.asarray(idx).tolist())), dtype=np.int64)
+            if not len(idx):
+                return
+            want_paths = [scored[i] for i in idx]
+            for c in bounded:
+                got = self._stored_rows(c, pkeys[c], want_paths)
+                read[c].update(got)
+                R = np.asarray([got[p] for p in want_paths]).reshape(-1, *sample_rows[c].shape[1:])
+                dists[c][idx] = descriptor_distances(c, [q[c]], R)[0]
+            known[idx] = True
+
+        if bounded:  # each bounded component's best candidates by its bound: its nearest items
+            first = [ns + np.argsort(dists[c][ns:], kind="stable")[:FUSED_LB_SEED] for c in bounded]
+            read_rows(np.concatenate(first))
+        for c in weights:
+            if c not in vec:
+                near[c] = np.sort(dists[c][known])[:FUSED_K]
+        sample_d = {c: v[:ns] for c, v in dists.items()}
+        while True:  # branch and bound: read the rows whose fused lower bound can still make the list
+            d = fuse_estimated_row(dists, sample_d, near, weights)
+            limit = np.sort(d[known])[min(int(want), int(known.sum())) - 1]
+            todo = np.flatnonzero(~known & (d <= limit))
+            if not len(todo):
+                break
+            read_rows(todo)
+        d = np.where(known, d, np.inf)
         cand = _existing_nearest(d, scored, want, skip_missing, self.path)
+        cand = [i for i in cand if known[i]]
         short = [(scored[i], float(d[i])) for i in cand]
-        rows = []
-        for i in cand:
-            p = scored[i]
-            rows.append({c: (sample_rows[c][i] if i < len(sample) else
-                             np.asarray(vec[c].X[rows_by_c[c][p]]) if c in vec else rows_by_c[c][p])
-                         for c in weights})
+
+        def row(c, i):  # component c's descriptor of scored shape i
+            if i < ns:
+                return sample_rows[c][i]
+            if c in vec:
+                return np.asarray(vec[c].X[rows_by_c[c][scored[i]]])
+            return read[c][scored[i]] if c in bounded else rows_by_c[c][scored[i]]
+
+        rows = [{c: row(c, i) for c in weights} for i in cand]
         return short, rows
 
     def _fused_sample(self, weights: dict, vec: dict, pkeys: dict) -> tuple[list[str], dict]:

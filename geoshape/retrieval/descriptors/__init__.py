@@ -73,7 +73,7 @@ __all__ = [
     "FUSIONS",
     "DEFAULT_RETRIEVAL_METHOD",
     "method_descriptors",
-    "lower_bound_embedding",
+    "lower_bound_rows",
     "DEFAULT_AFFINITY",
     "CCD_POINTS",
     "get_descriptor",
@@ -595,16 +595,18 @@ def _compute(V, F, name: str, params: dict, seed: int, basis=None) -> np.ndarray
 # ---------------------------------------------------------------------------------------
 
 
-def lower_bound_embedding(name: str):
-    """For a descriptor whose metric is not a vector distance but has a short Euclidean
-    lower bound (``pcavox``: :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_lower_bound_embedding`),
-    the function ``(N, ...) array -> (N, m) float64`` giving it; otherwise None. A large
-    index searches those vectors for candidates and re-scores them with the descriptor's
-    own distance."""
+def lower_bound_rows(name: str):
+    """For a descriptor whose metric is not a vector distance but has a cheap lower bound
+    (``pcavox``), ``(rows, metric)``: the function ``(N, ...) array -> (N, m) float64``
+    giving short rows, and the name of their distance (a :mod:`geoshape.retrieval.ann`
+    metric) that never exceeds the descriptor's (pcavox:
+    :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_projection`, metric
+    ``"pcavox_lb"``); otherwise None. A large index searches those rows for candidates and
+    re-scores the candidates with the descriptor's own distance."""
     if get_descriptor(name).metric == "pcavox":
-        from geoshape.retrieval.descriptors.pcavox import pcavox_lower_bound_embedding
+        from geoshape.retrieval.descriptors.pcavox import pcavox_projection
 
-        return pcavox_lower_bound_embedding
+        return pcavox_projection, "pcavox_lb"
     return None
 
 

@@ -48,7 +48,9 @@ __all__ = [
     "scaled_principal_axes",
     "pcavox_descriptor",
     "pcavox_distance_matrix",
-    "pcavox_lower_bound_embedding",
+    "pcavox_projection",
+    "pcavox_projection_distance",
+    "pcavox_projection_embedding",
 ]
 
 #: grid cells per axis
@@ -61,8 +63,10 @@ PCAVOX_SIGMA = 0.7
 PCAVOX_DEGENERATE = 0.8
 #: up to this many rows of ``XA``, :func:`pcavox_distance_matrix` permutes the query side
 _FEW_QUERIES = 8
-#: cosine frequencies per axis kept by :func:`pcavox_lower_bound_embedding` (4³ = 64 values)
-PCAVOX_LB_FREQUENCIES = 4
+#: cosine frequencies per axis kept by :func:`pcavox_projection` (6³ = 216 coefficients)
+PCAVOX_PROJECTION_FREQUENCIES = 6
+#: of those, the frequencies per axis of :func:`pcavox_projection_embedding` (4³ = 64 values)
+PCAVOX_EMBEDDING_FREQUENCIES = 4
 
 
 def scaled_principal_axes(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -272,54 +276,125 @@ def pcavox_distance_matrix(XA, XB=None, *, degenerate: float = PCAVOX_DEGENERATE
 
 
 @functools.lru_cache(maxsize=4)
-def _cosine_orbits(resolution: int, m: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Orthonormal DCT-II rows ``(m, R)`` and the frequency triples ``(k1, k2, k3)`` grouped
-    by orbit under axis permutations (each orbit's flat indices into the ``m³`` block)."""
+def _cosines(resolution: int, m: int) -> np.ndarray:
+    """The ``m`` lowest orthonormal DCT-II functions on ``resolution`` cells, ``(m, R)``."""
     i = np.arange(resolution)
     B = np.sqrt(2.0 / resolution) * np.cos(np.pi * np.arange(m)[:, None] * (i[None, :] + 0.5) / resolution)
     B[0] /= np.sqrt(2.0)
-    orbits: dict[tuple, list[int]] = {}
-    for flat, t in enumerate(itertools.product(range(m), repeat=3)):
-        orbits.setdefault(tuple(sorted(t)), []).append(flat)
-    return B, [np.array(orbits[key]) for key in sorted(orbits)]
+    return B
 
 
-def pcavox_lower_bound_embedding(X, *, frequencies: int = PCAVOX_LB_FREQUENCIES) -> np.ndarray:
-    """Short vectors whose Euclidean distance bounds the pcavox distance from below.
+@functools.lru_cache(maxsize=4)
+def _coefficient_symmetries(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """How the 48 signed axis permutations act on an ``m x m x m`` block of cosine
+    coefficients: ``(48, m³)`` source indices and ``(48, m³)`` signs. Reflecting axis ``a``
+    multiplies coefficient ``k`` by ``(−1)^{k_a}``; permuting the axes permutes the triples."""
+    k = np.array(list(itertools.product(range(m), repeat=3)))
+    flat = (k[:, 0] * m + k[:, 1]) * m + k[:, 2]
+    index, sign = [], []
+    for p in itertools.permutations(range(3)):
+        kp = k[:, list(p)]
+        src = (kp[:, 0] * m + kp[:, 1]) * m + kp[:, 2]
+        for s in itertools.product((0, 1), repeat=3):
+            index.append(src[np.argsort(flat)])
+            sign.append(np.where((kp @ np.array(s)) % 2 == 1, -1.0, 1.0)[np.argsort(flat)])
+    return np.array(index), np.array(sign)
 
-    ``φ(x)``: the grid's ``m³`` lowest 3D cosine (DCT-II, orthonormal) coefficients, in
-    absolute value, sorted within each orbit of frequency triples under axis permutations.
-    For any two descriptors and *any* of the 48 signed axis permutations ``g`` (so for any
-    allowed subset): ``‖φ(a) − φ(b)‖ ≤ ‖a − g(b)‖`` — the projection onto orthonormal
-    functions is a contraction; a reflection of an axis multiplies coefficient ``k`` by
-    ``(−1)^k`` and a permutation of axes permutes the triples within their orbit, so
-    ``| |â| − |b̂| |`` entrywise and then sorting within orbits (the rearrangement
-    inequality) can only shrink the difference. Hence ``‖φ(a) − φ(b)‖ ≤`` the
-    :func:`pcavox_distance_matrix` entry, whatever the spreads. A 64-value stand-in for the
-    4099-value descriptor when a large index looks for pcavox candidates (re-scored exactly).
+
+def pcavox_projection(X, *, frequencies: int = PCAVOX_PROJECTION_FREQUENCIES) -> np.ndarray:
+    """The grid's lowest 3D cosine coefficients and the norm of the rest.
 
     Parameters
     ----------
     X : (N, R^3 + 3) float
         pcavox descriptors.
     frequencies : int
-        Cosine frequencies per axis ``m`` (``1 ≤ m ≤ R``).
+        Cosine (DCT-II, orthonormal) frequencies per axis ``m``, ``1 ≤ m ≤ R``.
 
     Returns
     -------
-    (N, m³) float64
+    (N, m³ + 1) float64
+        The ``m³`` coefficients (C order), then ``‖x − Px‖``: the part of the grid they do not
+        hold. Compare two with :func:`pcavox_projection_distance`.
 
     Notes
     -----
-    Three small tensor products: O(N R³ m) time.
+    Three small tensor products: O(N R³ m).
     """
     G, _, R = _split(X)
     m = int(frequencies)
     if not 1 <= m <= R:
-        raise InvalidOptionError(f"pcavox lower bound needs 1 <= frequencies <= {R}, got {frequencies!r}")
-    B, orbits = _cosine_orbits(R, m)
-    H = G.reshape(-1, R, R, R)
-    H = np.tensordot(H, B, axes=([3], [1]))  # (N, R, R, m)
+        raise InvalidOptionError(f"pcavox projection needs 1 <= frequencies <= {R}, got {frequencies!r}")
+    B = _cosines(R, m)
+    H = np.tensordot(G.reshape(-1, R, R, R), B, axes=([3], [1]))  # (N, R, R, m)
     H = np.einsum("nijc,bj->nibc", H, B)
-    H = np.abs(np.einsum("nibc,ai->nabc", H, B)).reshape(len(G), -1)
-    return np.concatenate([np.sort(H[:, o], axis=1) for o in orbits], axis=1)
+    H = np.einsum("nibc,ai->nabc", H, B).reshape(len(G), -1)
+    rest = np.sqrt(np.maximum((G * G).sum(axis=1) - (H * H).sum(axis=1), 0.0))
+    return np.concatenate([H, rest[:, None]], axis=1)
+
+
+def pcavox_projection_distance(A, B) -> np.ndarray:
+    """A lower bound of the pcavox distance from two :func:`pcavox_projection` rows.
+
+    ``sqrt(min_g ‖P(g a) − P b‖² + (‖a − Pa‖ − ‖b − Pb‖)²)`` over all 48 signed axis
+    permutations ``g``. For every ``g`` the squared grid distance splits into the part
+    inside the span of the low cosines and the part outside (the span is mapped onto itself
+    by every ``g``, so ``‖g a − P(g a)‖ = ‖a − Pa‖``); the outside part is at least the
+    squared difference of the two norms. So the value never exceeds the
+    :func:`pcavox_distance_matrix` entry, whatever subset of symmetries that allows.
+
+    Parameters
+    ----------
+    A, B : (..., m³ + 1) float
+        Projection rows, broadcast against each other.
+
+    Returns
+    -------
+    (...) float64
+
+    Notes
+    -----
+    48 dot products of ``m³`` values per pair.
+    """
+    A = np.asarray(A, dtype=np.float64)
+    B = np.asarray(B, dtype=np.float64)
+    m = round((A.shape[-1] - 1) ** (1 / 3))
+    if m**3 + 1 != A.shape[-1] or A.shape[-1] != B.shape[-1]:
+        raise InvalidOptionError(f"pcavox projection rows must have m³ + 1 values, got {A.shape[-1]} and "
+                                 f"{B.shape[-1]}")
+    index, sign = _coefficient_symmetries(m)
+    shape = np.broadcast_shapes(A.shape, B.shape)[:-1]
+    A2 = np.broadcast_to(A, (*shape, A.shape[-1])).reshape(-1, A.shape[-1])
+    B2 = np.broadcast_to(B, (*shape, B.shape[-1])).reshape(-1, B.shape[-1])
+    best = np.empty(len(A2))
+    if A.ndim == 1:  # one query: its 48 variants against every row in one product
+        best[:] = ((A[:-1][index] * sign) @ B2[:, :-1].T).max(axis=0)
+    else:
+        for i in range(len(A2)):
+            best[i] = ((A2[i, :-1][index] * sign) @ B2[i, :-1]).max()
+    Ha, Hb = A2[:, :-1], B2[:, :-1]
+    inside = ((Ha * Ha).sum(axis=-1) + (Hb * Hb).sum(axis=-1) - 2.0 * best).reshape(shape)
+    outside = (A[..., -1] - B[..., -1]) ** 2
+    return np.sqrt(np.maximum(inside, 0.0) + outside)
+
+
+def pcavox_projection_embedding(P, *, frequencies: int = PCAVOX_EMBEDDING_FREQUENCIES) -> np.ndarray:
+    """Short vectors invariant to the 48 symmetries whose Euclidean distance bounds
+    :func:`pcavox_projection_distance` (so the pcavox distance) from below.
+
+    From a projection row: the coefficients of the lowest ``frequencies`` per axis, in
+    absolute value (a reflection only flips signs), sorted within each orbit of frequency
+    triples under axis permutations (a permutation moves values within their orbits; by the
+    rearrangement inequality sorted matching is the closest). ``(N, frequencies³)`` float64.
+    """
+    P = np.asarray(P, dtype=np.float64)
+    m = round((P.shape[-1] - 1) ** (1 / 3))
+    f = int(frequencies)
+    if m**3 + 1 != P.shape[-1] or not 1 <= f <= m:
+        raise InvalidOptionError(f"need projection rows of m³ + 1 values and 1 <= frequencies <= m, got "
+                                 f"{P.shape[-1]} values and {frequencies!r}")
+    H = P[:, :-1].reshape(-1, m, m, m)[:, :f, :f, :f].reshape(len(P), -1)
+    orbits: dict[tuple, list[int]] = {}
+    for flat, t in enumerate(itertools.product(range(f), repeat=3)):
+        orbits.setdefault(tuple(sorted(t)), []).append(flat)
+    return np.concatenate([np.sort(np.abs(H[:, orbits[key]]), axis=1) for key in sorted(orbits)], axis=1)
