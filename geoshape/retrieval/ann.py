@@ -697,7 +697,8 @@ class VectorSet:
             chosen = np.sort(order[:need])
             spans = list(zip(loff[chosen].tolist(), loff[chosen + 1].tolist(), strict=True))
             rows = np.concatenate([np.arange(a, b) for a, b in spans])
-            p2 = np.concatenate([self.E[a:b] for a, b in spans]) @ qe
+            # one product per list: the scanned rows are never copied together
+            p2 = np.concatenate([self.E[a:b] @ qe for a, b in spans])
             sq = np.asarray(self.sqn)[rows]
         else:
             rows = None
