@@ -293,3 +293,29 @@ def test_rows_of_and_the_hash_sample():
     expected = sorted(np.argsort(path_hashes(names), kind="stable")[:50].tolist())
     assert sorted(int(names.index(vs.path(r))) for r in sample) == expected
     assert len(vs.sample_rows(10_000)) == 500
+
+
+def test_fused_candidates_never_return_a_shape_whose_row_vanished(tmp_path, monkeypatch):
+    """A pcavox row deleted between the sidecar read and the row read (another writer) is
+    skipped, not an error."""
+    import geoshape.retrieval.index as index_module
+
+    rows = _fused_rows(120, seed=3)
+    names = [f"/synthetic/{k:03d}.off" for k in range(120)]
+    q = {c: X[5] for c, X in rows.items()}
+    with ShapeIndex(tmp_path / "i.db", search="brute") as idx:
+        for c, X in rows.items():
+            _fill(idx, c, X, names)
+        monkeypatch.setattr(index_module, "FUSED_SCAN_MAX", 0)
+        monkeypatch.setattr(index_module, "FUSED_SAMPLE", 16)
+        first = idx.query_descriptor(q, "fused", top=5)
+        assert first[0].path == names[5]
+        real = ShapeIndex._stored_rows
+
+        def lose_one(self, descriptor, pkey, paths):
+            return {p: r for p, r in real(self, descriptor, pkey, paths).items() if p != names[5]}
+
+        monkeypatch.setattr(ShapeIndex, "_stored_rows", lose_one)
+        idx._cache.clear()  # the sample's rows are read again too
+        hits = idx.query_descriptor(q, "fused", top=5)
+    assert names[5] not in [h.path for h in hits] and len(hits) == 5

@@ -1151,6 +1151,7 @@ class ShapeIndex:
         scored = sample + paths
         known = np.zeros(len(scored), dtype=bool)
         known[:ns] = True
+        gone = np.zeros(len(scored), dtype=bool)
         read: dict[str, dict] = {c: {} for c in bounded}
 
         def read_rows(idx):  # exact distances of bounded components for candidates idx
@@ -1161,8 +1162,12 @@ class ShapeIndex:
             for c in bounded:
                 got = self._stored_rows(c, pkeys[c], want_paths)
                 read[c].update(got)
-                R = np.asarray([got[p] for p in want_paths]).reshape(-1, *sample_rows[c].shape[1:])
-                dists[c][idx] = descriptor_distances(c, [q[c]], R)[0]
+                here = np.array([p in got for p in want_paths])
+                gone[idx[~here]] = True  # deleted since the sidecar was read: never returned
+                R = np.asarray([got[p] for p in want_paths if p in got])
+                R = R.reshape(-1, *sample_rows[c].shape[1:])
+                if len(R):
+                    dists[c][idx[here]] = descriptor_distances(c, [q[c]], R)[0]
             known[idx] = True
 
         if bounded:  # each bounded component's best candidates by its bound: its nearest items
@@ -1170,18 +1175,19 @@ class ShapeIndex:
             read_rows(np.concatenate(first))
         for c in weights:
             if c not in vec:
-                near[c] = np.sort(dists[c][known])[:FUSED_K]
+                near[c] = np.sort(dists[c][known & ~gone])[:FUSED_K]
         sample_d = {c: v[:ns] for c, v in dists.items()}
         while True:  # branch and bound: read the rows whose fused lower bound can still make the list
             d = fuse_estimated_row(dists, sample_d, near, weights)
-            limit = np.sort(d[known])[min(int(want), int(known.sum())) - 1]
+            ok = known & ~gone
+            limit = np.sort(d[ok])[min(int(want), int(ok.sum())) - 1]
             todo = np.flatnonzero(~known & (d <= limit))
             if not len(todo):
                 break
             read_rows(todo)
-        d = np.where(known, d, np.inf)
+        d = np.where(known & ~gone, d, np.inf)
         cand = _existing_nearest(d, scored, want, skip_missing, self.path)
-        cand = [i for i in cand if known[i]]
+        cand = [i for i in cand if known[i] and not gone[i]]
         short = [(scored[i], float(d[i])) for i in cand]
 
         def row(c, i):  # component c's descriptor of scored shape i
