@@ -665,13 +665,15 @@ class VectorSet:
 
     # -- search ------------------------------------------------------------------------
     def search(self, q, k: int, *, mode: str = "brute", nprobe: int | None = None,
-               min_scan: int = MIN_SCAN) -> tuple[np.ndarray, np.ndarray]:
+               min_scan: int = MIN_SCAN, certify: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Rows of the ``k`` nearest stored descriptors to ``q`` and their exact distances,
         nearest first, ties by path.
 
         ``mode="brute"``: the exact top k. ``mode="ivf"``: the scanned lists' exact top k
         (``nprobe`` lists nearest to the query, default ``max(8, nlist / 32)``, at least
-        ``min_scan`` rows).
+        ``min_scan`` rows). ``certify=False``: only the ``2k + 10`` nearest by the embedding
+        are re-scored (a candidate list, not guaranteed exact: where the embedding bounds
+        the distance loosely, certifying re-scores many more rows).
         """
         q = np.asarray(q, dtype=np.float64).reshape(-1)
         if len(q) != self.d:
@@ -680,9 +682,9 @@ class VectorSet:
         if k <= 0:
             return np.zeros(0, np.int64), np.zeros(0)
         with _one_blas_thread():
-            return self._search(q, k, mode, nprobe, min_scan)
+            return self._search(q, k, mode, nprobe, min_scan, certify)
 
-    def _search(self, q, k, mode, nprobe, min_scan):
+    def _search(self, q, k, mode, nprobe, min_scan, certify=True):
         qe = embed(self.metric, q[None])[0]
         qn = float(qe @ qe)
         if mode == "ivf" and self.nlist > 1 and self.n > min_scan:
@@ -712,7 +714,7 @@ class VectorSet:
         cand = _smallest(p2, k1)
         glob = cand if rows is None else rows[cand]
         dc = pair_distances(self.metric, q, np.asarray(self.X[glob]))
-        if len(cand) < m:  # certify: every row whose lower bound may beat the k-th exact distance
+        if certify and len(cand) < m:  # every row whose lower bound may beat the k-th exact distance
             delta = np.partition(dc, k - 1)[k - 1]
             limit = float(_p2_threshold(self.metric, delta) + self._eps(qn)) - qn
             more = np.flatnonzero(p2 <= limit)

@@ -41,7 +41,8 @@ import numpy as np
 from geoshape.errors import InvalidOptionError
 
 __all__ = ["FUSED_WEIGHTS", "FUSED_GAP_REFERENCE", "FUSED_POWER", "FUSED_K", "GAP_FLOOR",
-           "fuse_distances", "fuse_estimated_row", "query_gaps", "typical_gaps", "check_weights"]
+           "fuse_distances", "fuse_estimated_row", "estimated_coefficients", "query_gaps", "typical_gaps",
+           "check_weights"]
 
 #: Component weights of the ``fused`` retrieval method: the "grid best on all collections" of
 #: ``geoshape bench fusion`` (pool evd_heat, shapedna, lfd, shd, wks, pcavox on the 1/8 grid,
@@ -202,20 +203,34 @@ def fuse_estimated_row(distances: dict, sample: dict, nearest: dict, weights: di
     Returns
     -------
     (M,) float64
+        ``Σ_c coef[c] · distances[c]`` with ``coef`` from :func:`estimated_coefficients`.
     """
-    w = check_weights(weights, list(distances))
-    used = [n for n in distances if w[n] > 0]
+    coef = estimated_coefficients(sample, nearest, weights, reference=reference, power=power)
+    missing = [n for n in coef if n not in distances]
+    if missing:
+        raise InvalidOptionError(f"no distances for component(s) {', '.join(map(repr, missing))}")
+    return sum(a * _check_matrix(n, np.reshape(distances[n], (1, -1)))[0] for n, a in coef.items())
+
+
+def estimated_coefficients(sample: dict, nearest: dict, weights: dict, *, reference: dict | None = None,
+                           power: float = FUSED_POWER) -> dict[str, float]:
+    """The factor of each component's raw distances in :func:`fuse_estimated_row`:
+    ``W_c(q) / median_c`` (per-query weight over the scale). Fixed by the sample and the
+    nearest distances, so a caller that scores more items later (branch and bound) fuses
+    them with the same numbers. Components of weight 0 are left out."""
+    w = check_weights(weights, list(sample))
+    used = [n for n in sample if w[n] > 0]
     if not used:
         raise InvalidOptionError("fusion weights are all zero for the components given")
-    normed, gaps = [], {}
+    scale, gaps = {}, {}
     for name in used:
         med = float(_row_scale(_check_matrix(name, np.reshape(sample[name], (1, -1))), None)[0])
-        normed.append(_check_matrix(name, np.reshape(distances[name], (1, -1)))[0] / med)
         near = np.asarray(nearest[name], dtype=np.float64)
+        scale[name] = med
         gaps[name] = np.array([1.0 - float(np.mean(near)) / med])
     ref = FUSED_GAP_REFERENCE if reference is None else reference
     W = _query_weights(gaps, w, ref, float(power), True)[:, 0]
-    return sum(Wc * N for Wc, N in zip(W, normed, strict=True))
+    return {name: float(Wc) / scale[name] for name, Wc in zip(used, W, strict=True)}
 
 
 def query_gaps(D, *, k: int = FUSED_K, all_pairs: bool | None = None) -> np.ndarray:

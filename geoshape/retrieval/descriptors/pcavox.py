@@ -237,13 +237,17 @@ def pcavox_distance_matrix(XA, XB=None, *, degenerate: float = PCAVOX_DEGENERATE
     na = (GA * GA).sum(axis=1)
     nb = (GB * GB).sum(axis=1)
     D = np.full((len(GA), len(GB)), np.inf)
-    allowed, allowed_ids = [], []
+    # which pairs may swap axes a < b: one of the two shapes is near-degenerate there
+    swap = {(a, b): near(SA, a, b)[:, None] | near(SB, a, b)[None, :] for a, b in ((0, 1), (0, 2), (1, 2))}
+    allowed, allowed_ids, masks = [], [], {}
     for t, (p, perm) in enumerate(zip(axes, cells, strict=True)):
-        ok = np.ones(D.shape, dtype=bool)
-        for i in range(3):
-            if p[i] != i:
-                a, b = sorted((i, int(p[i])))
-                ok &= near(SA, a, b)[:, None] | near(SB, a, b)[None, :]
+        moved = tuple(sorted({tuple(sorted((i, int(p[i])))) for i in range(3) if p[i] != i}))
+        if moved not in masks:
+            ok = np.ones(D.shape, dtype=bool)
+            for pair in moved:
+                ok &= swap[pair]
+            masks[moved] = ok
+        ok = masks[moved]
         if ok.any():
             allowed.append((perm, ok))
             allowed_ids.append(t)
