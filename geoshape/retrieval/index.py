@@ -87,8 +87,6 @@ __all__ = ["ShapeIndex", "AddReport", "Hit", "file_sha256", "expand_mesh_inputs"
 SCHEMA_VERSION = 2  # 2: sets, changes and the triggers that log every change of entries
 #: ``PRAGMA application_id`` of a geoshape index (the bytes "GSHP")
 APPLICATION_ID = 0x47534850
-#: SQLite page size of a new index (the largest SQLite allows)
-PAGE_SIZE = 65536
 #: Seconds after which a claim of a process on another host is considered abandoned.
 CLAIM_LIFETIME = 3600.0
 #: descriptors stored by ``index add`` when none is named: the components of the fused
@@ -300,9 +298,6 @@ class ShapeIndex:
         self._created = False  # set by _set_up when this object initialised the database
         try:
             self._conn = sqlite3.connect(str(self.path), timeout=timeout, isolation_level=None)
-            # a new database gets the largest pages: a 32 KB pcavox row is then one page, one
-            # read, where 4 KB pages chain it over 9 (no effect on an existing file)
-            self._conn.execute(f"PRAGMA page_size = {PAGE_SIZE}")
         except sqlite3.Error as exc:
             raise DatasetError(f"{self.path}: cannot open: {exc}") from None
         deadline = time.monotonic() + timeout
