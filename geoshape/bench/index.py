@@ -632,7 +632,7 @@ def _fused_real(work, folder) -> str:
     from geoshape.retrieval.index import ShapeIndex
 
     items = read_labels(folder)
-    label = {str(Path(p).resolve()): lab for p, lab in items}
+    label = {str(Path(it.path).resolve()): it.label for it in items}
     size = Counter(label.values())
     db = Path(work) / "real.db"
     for p in Path(work).glob("real.db*"):
@@ -640,7 +640,7 @@ def _fused_real(work, folder) -> str:
     comps = [c for c, w in FUSIONS["fused"].items() if w > 0]
     t0 = time.perf_counter()
     with ShapeIndex(db, search="brute") as idx:
-        idx.add([p for p, _ in items])
+        idx.add([it.path for it in items])
         stored = {c: dict(zip(*idx.load(c, descriptor_params(c)), strict=True)) for c in comps}
         paths = [p for p in stored[comps[0]] if p in label]
         want = max(10, max(size.values()) - 1)
