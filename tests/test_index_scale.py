@@ -319,3 +319,38 @@ def test_fused_candidates_never_return_a_shape_whose_row_vanished(tmp_path, monk
         idx._cache.clear()  # the sample's rows are read again too
         hits = idx.query_descriptor(q, "fused", top=5)
     assert names[5] not in [h.path for h in hits] and len(hits) == 5
+
+
+def test_fused_branch_and_bound_reads_what_reading_everything_would_rank(tmp_path, monkeypatch):
+    """Branch and bound over pcavox reads gives the same list as reading every candidate's
+    pcavox row (same weights), with a small sample; deleted files are skipped and the list
+    stays full."""
+    import geoshape.retrieval.index as index_module
+
+    rows = _fused_rows(300, seed=5)
+    folder = tmp_path / "m"
+    folder.mkdir()
+    names = [str(folder / f"s{k:03d}.off") for k in range(300)]
+    for p in names:
+        open(p, "w").close()
+    rng = np.random.default_rng(2)
+    queries = [{c: X[i] * np.exp(0.01 * rng.standard_normal(X.shape[1])) if c != "pcavox" else X[i]
+                for c, X in rows.items()} for i in (3, 77, 150, 299)]
+    monkeypatch.setattr(index_module, "FUSED_SCAN_MAX", 0)
+    monkeypatch.setattr(index_module, "FUSED_SAMPLE", 32)
+    with ShapeIndex(tmp_path / "i.db", search="brute") as idx:
+        for c, X in rows.items():
+            _fill(idx, c, X, names)
+        bb = [idx.query_descriptor(q, "fused", top=10) for q in queries]
+        monkeypatch.setattr(index_module, "FUSED_LB_SEED", 10_000)  # read every candidate at once
+        every = [idx.query_descriptor(q, "fused", top=10) for q in queries]
+        for a, b in zip(bb, every, strict=True):
+            assert [h.path for h in a] == [h.path for h in b]
+            assert np.allclose([h.distance for h in a], [h.distance for h in b], rtol=1e-12)
+        monkeypatch.setattr(index_module, "FUSED_LB_SEED", 8)
+        gone = {h.path for h in bb[0][:3]}
+        for p in gone:
+            (folder / p.rsplit("/", 1)[1]).unlink()
+        hits = idx.query_descriptor(queries[0], "fused", top=10, skip_missing=True)
+    assert len(hits) == 10 and not gone & {h.path for h in hits}
+    assert [h.path for h in hits][:7] == [h.path for h in bb[0]][3:10]

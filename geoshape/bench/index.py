@@ -324,7 +324,8 @@ def run(args) -> int:
             shutil.rmtree(work, ignore_errors=True)
 
     md = [
-        "Command: `geoshape bench index` (synthetic EVD rows, see `geoshape/bench/index.py`). "
+        "Command: `geoshape bench index --fused-sizes --fused-independent-sizes` (synthetic EVD rows, "
+        "see `geoshape/bench/index.py`; the fused default at scale is section `index-fused`). "
         f"Descriptor length d = {d}; top 10; exact = χ² over all rows in float64.",
         "",
         "**Top-10 query** (one fresh process per row, the sidecar files read once before it as a "
@@ -343,18 +344,28 @@ def run(args) -> int:
     if fused_rows:
         from geoshape.retrieval.index import FUSED_CANDIDATES, FUSED_SAMPLE, FUSED_SCAN_MAX
 
-        md += ["", "**The default query (`fused`) at scale** (synthetic rows of all five components, "
-               f"see `_fused_chunk`; above {FUSED_SCAN_MAX} shapes a query scores the {FUSED_CANDIDATES} "
-               "nearest of each sidecar component + a sample of "
-               f"{FUSED_SAMPLE} shapes for the medians, pcavox rows read by primary key where branch "
-               "and bound needs them; "
-               "recall@10 against the exact fused scan of all rows, `fuse_distances` on full "
-               "distance rows; one fresh process, sidecars read once before it, the database not; "
-               "`search=\"auto\"`):", "",
-               markdown_table(["rows", "scatter", "first ms", "median ms", "p95 ms", "recall@10",
-                               "RSS growth MB"], fused_rows),
-               "", markdown_table(["rows", "scatter", "descriptors", "insert s", "database MB",
-                                   "sidecars build s", "build peak RSS MB", "sidecars MB"], fused_build)]
+        sizes = " ".join(map(str, args.fused_sizes))
+        indep = " ".join(map(str, args.fused_independent_sizes))
+        fused_md = [
+            f"Command: `geoshape bench index --fused-sizes {sizes} --fused-independent-sizes {indep} "
+            "--sizes --graph-sizes --dask-meshes 0` (the fused part of `geoshape bench index`; "
+            f"{args.queries} queries, recall of the first {args.fused_recall_queries}).", "",
+            "**The default query (`fused`) at scale** (synthetic rows of all five components, "
+            f"see `_fused_chunk`; above {FUSED_SCAN_MAX} shapes a query scores the {FUSED_CANDIDATES} "
+            "nearest of each sidecar component + a sample of "
+            f"{FUSED_SAMPLE} shapes for the medians, pcavox rows read by primary key where branch "
+            "and bound needs them; "
+            "recall@10 against the exact fused scan of all rows, `fuse_distances` on full "
+            "distance rows; one fresh process, sidecars read once before it, the database not; "
+            "`search=\"auto\"`):", "",
+            markdown_table(["rows", "scatter", "first ms", "median ms", "p95 ms", "recall@10",
+                            "RSS growth MB"], fused_rows),
+            "", markdown_table(["rows", "scatter", "descriptors", "insert s", "database MB",
+                                "sidecars build s", "build peak RSS MB", "sidecars MB"], fused_build)]
+        fused_text = "\n".join(fused_md)
+        print(fused_text)
+        if not args.no_write:
+            print(f"wrote {update_results_section('index-fused', fused_text)}")
     if graph_rows:
         md += ["", f"**k-nearest-neighbour graph** (K = {GRAPH_K}, exact; built on the first "
                "`--rerank lcdp`: all pairs up to 20,000 rows, pruned by IVF lists above; then kept "
@@ -367,8 +378,8 @@ def run(args) -> int:
                markdown_table(["run", "meshes", "workers", "added", "skipped", "seconds", "meshes/s",
                                "10^4 meshes (extrapolated)"], dask_rows)]
     text = "\n".join(md)
-    if not (search_rows or fused_rows or graph_rows or dask_rows):
-        return 0  # only --real ran: its own section is written
+    if not (search_rows or graph_rows or dask_rows):
+        return 0  # only --real / the fused part ran: their own sections are written
     print(text)
     if not args.no_write:
         print(f"wrote {update_results_section('index', text)}")

@@ -193,7 +193,8 @@ def pair_distances(metric: str, A, B) -> np.ndarray:
         from geoshape.retrieval.descriptors.pcavox import pcavox_projection_distance
 
         return pcavox_projection_distance(A, B)
-    raise InvalidOptionError(f"metric {metric!r} is not a vector distance ({', '.join(VECTOR_METRICS)})")
+    raise InvalidOptionError(f"metric {metric!r} is not a vector distance "
+                             f"({', '.join(VECTOR_METRICS + BOUND_METRICS)})")
 
 
 _CONTROLLER = None

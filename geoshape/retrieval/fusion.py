@@ -219,6 +219,9 @@ def estimated_coefficients(sample: dict, nearest: dict, weights: dict, *, refere
     nearest distances, so a caller that scores more items later (branch and bound) fuses
     them with the same numbers. Components of weight 0 are left out."""
     w = check_weights(weights, list(sample))
+    unweighted = [n for n in sample if n not in w]
+    if unweighted:
+        raise InvalidOptionError(f"no fusion weight for component(s) {', '.join(map(repr, unweighted))}")
     used = [n for n in sample if w[n] > 0]
     if not used:
         raise InvalidOptionError("fusion weights are all zero for the components given")

@@ -69,6 +69,7 @@ import os
 import shutil
 import socket
 import sqlite3
+import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -97,7 +98,9 @@ DEFAULT_INDEX_DESCRIPTORS = tuple(n for n, w in FUSED_WEIGHTS.items() if w > 0)
 DEFAULT_QUERY_METHOD = "fused"
 #: how queries search: ``auto`` (exact brute force over the sidecar, IVF above
 #: :data:`IVF_MIN_VALUES`), ``brute`` (always exact), ``ivf`` (always the IVF), ``memory``
-#: (no sidecar: every stored descriptor loaded from SQLite, O(N) distances)
+#: (no sidecar: every stored descriptor loaded from SQLite, O(N) distances). The fused
+#: default above :data:`FUSED_SCAN_MAX` shapes scores a candidate list in every mode but
+#: ``memory``.
 SEARCH_MODES = ("auto", "brute", "ivf", "memory")
 #: ``search="auto"`` uses the IVF above this many stored values (rows x descriptor length):
 #: 400,000 EVD rows; exact brute force costs about 4 ms there (``geoshape bench index``)
@@ -106,6 +109,9 @@ IVF_MIN_VALUES = 8_000_000
 #: normalised distances; exact copies give 0 up to rounding): ranked first after re-ranking
 DUPLICATE_DISTANCE = 1e-12
 
+#: threads (each with its own read-only connection) reading the candidates' rows of a
+#: non-vector component in a large fused query: random disk reads overlap
+READ_THREADS = 4
 #: diffusion re-ranking gathers the shortlist's neighbours and theirs from the stored graph
 DIFFUSION_HOPS = 2
 #: a fused query scans every stored shape exactly up to this many (all components' distances,
@@ -117,7 +123,8 @@ FUSED_CANDIDATES = 32
 #: above :data:`FUSED_SCAN_MAX`: stored shapes whose distances give each component's median
 FUSED_SAMPLE = 256
 #: above :data:`FUSED_SCAN_MAX`: candidates of a lower-bounded component (pcavox) read first,
-#: its best by the bound; their exact distances give its nearest items
+#: its best by the bound (their exact distances give its nearest items), and then per round
+#: of the branch and bound
 FUSED_LB_SEED = 8
 
 _SCHEMA = """
@@ -318,6 +325,9 @@ class ShapeIndex:
                 raise
         self._cache: dict = {}
         self._vectors_cache: dict = {}  # params key -> (version, VectorSet or None when ragged)
+        self._pool = None  # threads of _stored_rows, started on first use
+        self._local = threading.local()
+        self._thread_conns: list[sqlite3.Connection] = []
 
     def _set_up(self) -> None:
         """Check that the file is a geoshape index (or empty), then create the schema.
@@ -354,6 +364,12 @@ class ShapeIndex:
 
     # -- context manager -----------------------------------------------------------------
     def close(self) -> None:
+        if getattr(self, "_pool", None) is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+        for conn in getattr(self, "_thread_conns", []):
+            with contextlib.suppress(sqlite3.Error):
+                conn.close()
         with contextlib.suppress(sqlite3.Error):
             self._conn.close()
 
@@ -700,10 +716,13 @@ class ShapeIndex:
             return None
         from geoshape.retrieval.descriptors import get_descriptor, lower_bound_rows
 
-        metric = lower_bound_rows(descriptor)[1] if lower_bound else get_descriptor(descriptor).metric
+        if lower_bound:
+            _, metric, tag = lower_bound_rows(descriptor)
+        else:
+            metric, tag = get_descriptor(descriptor).metric, False
         m = vs.meta
-        if (m.get("index_id"), m.get("descriptor"), m.get("params"), bool(m.get("lower_bound")),
-                m.get("metric")) != (index_id, descriptor, pkey, lower_bound, metric):
+        if (m.get("index_id"), m.get("descriptor"), m.get("params"), m.get("lower_bound", False),
+                m.get("metric")) != (index_id, descriptor, pkey, tag, metric):
             return None
         return vs
 
@@ -788,7 +807,7 @@ class ShapeIndex:
         from geoshape.retrieval.ann import VectorSet
         from geoshape.retrieval.descriptors import get_descriptor, lower_bound_rows
 
-        embed_rows, metric = lower_bound_rows(descriptor) if lower_bound else (None, None)
+        embed_rows, metric, tag = lower_bound_rows(descriptor) if lower_bound else (None, None, False)
         paths, shapes, parts = [], set(), []
 
         def take(cursor):  # rows -> paths, shapes, (embedded) float64 blocks, 10,000 at a time
@@ -834,7 +853,7 @@ class ShapeIndex:
             paths, X = [paths[i] for i in order], X[order]
             meta = {"index_id": index_id, "descriptor": descriptor, "params": pkey, "version": version,
                     "metric": metric or get_descriptor(descriptor).metric, "shape": shape,
-                    "lower_bound": lower_bound}
+                    "lower_bound": tag}
             return VectorSet.build(meta, paths, X), version
         return base.updated(changed, paths, X, version), version
 
@@ -981,9 +1000,7 @@ class ShapeIndex:
             short = [(paths[i], float(d[i])) for i in cand]
             rows = [X[i] for i in cand]
         else:
-            mode = self.search_mode
-            if mode == "auto":
-                mode = "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
+            mode = self._mode(vs)
             k = min(vs.n, want)
             asked = k
             while True:
@@ -1045,7 +1062,9 @@ class ShapeIndex:
         sets = {c: self._vectors(c, pkeys[c]) for c in weights}
         if max((vs.n for vs in sets.values() if vs is not None), default=0) > FUSED_SCAN_MAX:
             bounds = {c: self._vectors(c, pkeys[c], lower_bound=True) for c in weights if sets[c] is None}
-            return self._fused_candidates(q, weights, want, sets, bounds, pkeys, skip_missing)
+            found = self._fused_candidates(q, weights, want, sets, bounds, pkeys, skip_missing)
+            if found is not None:
+                return found
         stored = {}
         for c in weights:
             spec = get_descriptor(c)
@@ -1070,26 +1089,36 @@ class ShapeIndex:
         rows = [{c: stored[c][1][stored[c][0][common[i]]] for c in weights} for i in cand]
         return short, rows
 
+    def _mode(self, vs) -> str:
+        """The search mode for one vector set (``auto``: IVF above :data:`IVF_MIN_VALUES`)."""
+        if self.search_mode == "auto":
+            return "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
+        return self.search_mode
+
     def _fused_candidates(self, q, weights: dict, want: int, sets: dict, bounds: dict, pkeys: dict,
                           skip_missing: bool):
         """:meth:`_fused_shortlist` for a large index: ``(short, rows)`` from a candidate list.
 
         Candidates: the :data:`FUSED_CANDIDATES` (at least ``want``) nearest stored shapes of
-        each component searched through a sidecar (``sets[c]``; exact or IVF as the index
-        searches), the as many nearest by the lower-bound vectors of each component that has
-        them instead (``bounds[c]``: ``pcavox``), plus a fixed sample of :data:`FUSED_SAMPLE`
-        stored shapes (the smallest path hashes: :meth:`VectorSet.sample_rows`). The vector
-        components' distances to them come from their sidecar rows (the sample's rows of every
-        component are cached per set version); they are fused by
-        :func:`geoshape.retrieval.fusion.fuse_estimated_row`: each component's median over the
-        sample, its nearest distances from its own search. A lower-bounded component's
-        descriptor is read from SQLite (primary key) only where it can matter — a random
-        read of a 32 KB pcavox row is the slowest step on a large, uncached index: first its
+        each component searched through a sidecar (``sets[c]``; brute force or IVF as the
+        index searches, without certification: a candidate list), as many nearest by the
+        lower-bound rows of each component that has them instead (``bounds[c]``: ``pcavox``),
+        plus a fixed sample of :data:`FUSED_SAMPLE` stored shapes (:meth:`_fused_sample`).
+        The vector components' distances to them come from their sidecar rows (the sample's
+        rows of every component are cached per set version); they are fused with the
+        coefficients of :func:`geoshape.retrieval.fusion.estimated_coefficients`: each
+        component's median over the sample, its nearest distances from its own search. So
+        even ``search="brute"`` is approximate here; ``search="memory"`` scans exactly. A
+        lower-bounded component's descriptor is read from SQLite (primary key) only where it
+        can matter — a random read of a 32 KB pcavox row is the slowest step on a large,
+        uncached index: first its
         :data:`FUSED_LB_SEED` best candidates by the bound (their exact distances, with the
         sample's, give its nearest items and so the query's weights), then, branch and bound,
-        every candidate whose fused distance with the bound in place of the exact one does
-        not exceed the ``want``-th exact fused distance so far, until none is left. So the
-        list is exactly the ``want`` best candidates for those weights. A shape that is in no
+        best first, :data:`FUSED_LB_SEED` at a time, every candidate whose fused distance with
+        the bound in place of the exact one does not exceed the ``want``-th exact fused
+        distance so far (of existing files, with ``skip_missing``), until none is left. So
+        the list is exactly the ``want`` best candidates for those weights. ``None`` when the
+        sample holds no shape with every component (the exact scan then decides). A shape that is in no
         component's candidate list is missed, and the sampled medians and the bounded
         component's nearest items are estimates: the ranking approximates the exact scan
         (recall measured by ``geoshape bench index``).
@@ -1106,18 +1135,18 @@ class ShapeIndex:
         k = max(int(want), FUSED_CANDIDATES)
         near = {}
         cands: dict[str, None] = {}
+        q_bound = {c: lower_bound_rows(c)[0](np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
+                   for c, b in bounds.items() if b is not None}
         for c, vs in [*vec.items(), *((c, b) for c, b in bounds.items() if b is not None)]:
-            mode = self.search_mode
-            if mode == "auto":
-                mode = "ivf" if vs.n * vs.d > IVF_MIN_VALUES else "brute"
-            qc = np.ravel(q[c]) if c in vec else \
-                lower_bound_rows(c)[0](np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
-            pos, dist = vs.search(qc, k, mode=mode, nprobe=self.nprobe, min_scan=self.min_scan,
-                                  certify=False)
+            pos, dist = vs.search(np.ravel(q[c]) if c in vec else q_bound[c], k, mode=self._mode(vs),
+                                  nprobe=self.nprobe, min_scan=self.min_scan, certify=False)
             if c in vec:
                 near[c] = dist[:FUSED_K]
             cands.update(dict.fromkeys(vs.paths(pos)))
-        sample, sample_rows = self._fused_sample(weights, vec, pkeys)
+        held = self._fused_sample(weights, vec, bounds, pkeys)
+        if held is None:  # no common shape in the sample, or ragged rows: the exact scan decides
+            return None
+        sample, sample_rows = held
         in_sample = set(sample)
         paths = [p for p in cands if p not in in_sample]
         bounded = [c for c in weights if c not in vec and bounds.get(c) is not None]
@@ -1143,15 +1172,14 @@ class ShapeIndex:
             dists[c] = np.zeros(ns + len(paths))
             dists[c][:ns] = descriptor_distances(c, [q[c]], sample_rows[c])[0]
             if c in bounded:  # lower bounds until the candidate's row is read
-                qe = lower_bound_rows(c)[0](np.asarray(q[c], dtype=np.float64).reshape(1, -1))[0]
                 R = np.asarray(bounds[c].X[[rows_by_c[c][p] for p in paths]])
-                dists[c][ns:] = pair_distances(bounds[c].metric, qe, R)
+                dists[c][ns:] = pair_distances(bounds[c].metric, q_bound[c], R)
             elif paths:
                 R = np.asarray([rows_by_c[c][p] for p in paths]).reshape(-1, *sample_rows[c].shape[1:])
                 dists[c][ns:] = descriptor_distances(c, [q[c]], R)[0]
         scored = sample + paths
         known = np.zeros(len(scored), dtype=bool)
-        known[:ns] = True
+        known[: ns if bounded else len(scored)] = True
         gone = np.zeros(len(scored), dtype=bool)
         read: dict[str, dict] = {c: {} for c in bounded}
 
@@ -1181,8 +1209,14 @@ class ShapeIndex:
         while True:  # branch and bound, best first: read the rows whose fused lower bound can
             d = sum(a * dists[c] for c, a in coef.items())  # still make the list
             ok = known & ~gone
+            if skip_missing:  # a deleted file cannot hold a place in the list
+                for i in np.flatnonzero(ok)[np.argsort(d[ok], kind="stable")[: int(want)]]:
+                    if _is_gone(scored[i]):
+                        gone[i] = True
+                ok = known & ~gone
             limit = np.sort(d[ok])[int(want) - 1] if ok.sum() >= want else np.inf
-            todo = np.flatnonzero(~known & (d <= limit))
+            # (the bound may exceed a zero distance by rounding: a relative allowance)
+            todo = np.flatnonzero(~known & (d <= limit * (1 + 1e-9) + 1e-9))
             if not len(todo):
                 break
             read_rows(todo[np.argsort(d[todo], kind="stable")[:FUSED_LB_SEED]])
@@ -1201,44 +1235,60 @@ class ShapeIndex:
         rows = [{c: row(c, i) for c in weights} for i in cand]
         return short, rows
 
-    def _fused_sample(self, weights: dict, vec: dict, pkeys: dict) -> tuple[list[str], dict]:
-        """The fixed sample of a large index's fused queries and its rows per component:
-        the :data:`FUSED_SAMPLE` smallest path hashes of the first sidecar component among
-        the shapes holding every component. Cached until one of the sets changes."""
+    def _fused_sample(self, weights: dict, vec: dict, bounds: dict, pkeys: dict):
+        """The fixed sample of a large index's fused queries, ``(paths, {component: rows})``:
+        the :data:`FUSED_SAMPLE` smallest path hashes of the smallest sidecar component, those
+        holding every component (fewer when some shapes lack one; None when none has all).
+        Cached until one of the sets changes."""
         with self._reading():
-            key = (FUSED_SAMPLE, *((c, self._set_version(c, pkeys[c])[1]) for c in weights))
+            key = (self._index_id(), FUSED_SAMPLE,
+                   *((c, pkeys[c], vec[c].version if c in vec else self._set_version(c, pkeys[c])[1])
+                     for c in weights))
         held = self._cache.get("fused sample")
         if held is not None and held[0] == key:
             return held[1], held[2]
-        first = next(iter(vec.values()))
+        first = min(vec.values(), key=lambda vs: vs.n)
         paths = first.paths(first.sample_rows(FUSED_SAMPLE))
         rows = {}
         for c in weights:
             if c in vec:
                 r = vec[c].rows_of(paths)
-                rows[c] = dict(zip(paths, np.asarray(vec[c].X[np.maximum(r, 0)]), strict=True))
-                rows[c] = {p: x for (p, x), ok in zip(rows[c].items(), r >= 0, strict=True) if ok}
+                rows[c] = {p: np.asarray(vec[c].X[i])
+                           for p, i in zip(paths, r.tolist(), strict=True) if i >= 0}
             else:
                 rows[c] = self._stored_rows(c, pkeys[c], paths)
             paths = [p for p in paths if p in rows[c]]
-        if not paths:
-            raise DatasetError(f"{self.path}: no stored shape has all of {', '.join(weights)}")
+        if not paths or any(len({np.shape(rows[c][p]) for p in paths}) > 1 for c in weights):
+            return None
         arrays = {c: np.stack([rows[c][p] for p in paths]) for c in weights}
         self._cache["fused sample"] = (key, paths, arrays)
         return paths, arrays
 
     def _stored_rows(self, descriptor: str, pkey: str, paths) -> dict:
         """``{path: row}`` of the stored rows of one set among ``paths`` (primary-key reads,
-        500 a statement)."""
-        out = {}
-        with self._reading() as conn:
-            for s in range(0, len(paths), 500):
-                chunk = paths[s : s + 500]
-                for path, shape, data in conn.execute(
-                        f"SELECT path, shape, data FROM entries WHERE descriptor = ? AND params = ? "
-                        f"AND path IN ({', '.join('?' * len(chunk))})", (descriptor, pkey, *chunk)):
-                    out[path] = np.frombuffer(data, dtype=np.float64).reshape(json.loads(shape))
-        return out
+        500 a statement). More than :data:`READ_THREADS` paths are read by that many threads,
+        each with its own read-only connection: a row not in the page cache costs a random
+        disk read (about 0.5 ms for a 32 KB pcavox row), and the reads overlap."""
+        paths = list(paths)
+        if len(paths) <= READ_THREADS:
+            return _select_rows(self._conn, descriptor, pkey, paths)
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._pool = ThreadPoolExecutor(READ_THREADS, thread_name_prefix="geoshape-read")
+        parts = self._pool.map(lambda part: _select_rows(self._thread_connection(), descriptor, pkey, part),
+                               [paths[i::READ_THREADS] for i in range(READ_THREADS)])
+        return {p: x for part in parts for p, x in part.items()}
+
+    def _thread_connection(self) -> sqlite3.Connection:
+        """This thread's read-only connection to the index (opened once, closed with it)."""
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True, timeout=self.timeout,
+                                   check_same_thread=False)
+            self._local.conn = conn
+            self._thread_conns.append(conn)
+        return conn
 
     def _diffusion_rerank(self, q, descriptor: str, method: str, short, top: int, *, vs, pos, rows):
         """Re-score the shortlist ``short`` by ``method`` over a local collection: the query,
@@ -1419,6 +1469,18 @@ def _split_inputs(inputs, names, report: AddReport) -> tuple[list, list[_MemoryM
             raise InvalidOptionError(f"mesh name {key!r} is given twice")
         meshes[key] = _MemoryMesh(key, sha, V, F)
     return paths, list(meshes.values())
+
+
+def _select_rows(conn: sqlite3.Connection, descriptor: str, pkey: str, paths) -> dict:
+    """``{path: row}`` of one set's stored rows among ``paths``, 500 a statement."""
+    out = {}
+    for s in range(0, len(paths), 500):
+        chunk = paths[s : s + 500]
+        for path, shape, data in conn.execute(
+                f"SELECT path, shape, data FROM entries WHERE descriptor = ? AND params = ? "
+                f"AND path IN ({', '.join('?' * len(chunk))})", (descriptor, pkey, *chunk)):
+            out[path] = np.frombuffer(data, dtype=np.float64).reshape(json.loads(shape))
+    return out
 
 
 def _existing_nearest(d: np.ndarray, paths, want: int, skip_missing: bool, index_path) -> np.ndarray:

@@ -597,16 +597,22 @@ def _compute(V, F, name: str, params: dict, seed: int, basis=None) -> np.ndarray
 
 def lower_bound_rows(name: str):
     """For a descriptor whose metric is not a vector distance but has a cheap lower bound
-    (``pcavox``), ``(rows, metric)``: the function ``(N, ...) array -> (N, m) float64``
-    giving short rows, and the name of their distance (a :mod:`geoshape.retrieval.ann`
-    metric) that never exceeds the descriptor's (pcavox:
-    :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_projection`, metric
-    ``"pcavox_lb"``); otherwise None. A large index searches those rows for candidates and
-    re-scores the candidates with the descriptor's own distance."""
+    (``pcavox``), ``(rows, metric, tag)``: the function ``(N, ...) array -> (N, m) float64``
+    giving short rows, the name of their distance (a :mod:`geoshape.retrieval.ann` metric)
+    that never exceeds the descriptor's, and a tag naming the rows' settings (a stored set
+    of other settings is rebuilt). pcavox:
+    :func:`~geoshape.retrieval.descriptors.pcavox.pcavox_projection`, metric ``"pcavox_lb"``.
+    Otherwise None. A large index searches those rows for candidates and re-scores the
+    candidates with the descriptor's own distance."""
     if get_descriptor(name).metric == "pcavox":
-        from geoshape.retrieval.descriptors.pcavox import pcavox_projection
+        from geoshape.retrieval.descriptors.pcavox import (
+            PCAVOX_EMBEDDING_FREQUENCIES,
+            PCAVOX_PROJECTION_FREQUENCIES,
+            pcavox_projection,
+        )
 
-        return pcavox_projection, "pcavox_lb"
+        tag = f"pcavox_projection {PCAVOX_PROJECTION_FREQUENCIES}/{PCAVOX_EMBEDDING_FREQUENCIES}"
+        return pcavox_projection, "pcavox_lb", tag
     return None
 
 

@@ -293,15 +293,14 @@ def _coefficient_symmetries(m: int) -> tuple[np.ndarray, np.ndarray]:
     """How the 48 signed axis permutations act on an ``m x m x m`` block of cosine
     coefficients: ``(48, m³)`` source indices and ``(48, m³)`` signs. Reflecting axis ``a``
     multiplies coefficient ``k`` by ``(−1)^{k_a}``; permuting the axes permutes the triples."""
-    k = np.array(list(itertools.product(range(m), repeat=3)))
-    flat = (k[:, 0] * m + k[:, 1]) * m + k[:, 2]
+    k = np.array(list(itertools.product(range(m), repeat=3)))  # C order: row i is flat index i
     index, sign = [], []
     for p in itertools.permutations(range(3)):
         kp = k[:, list(p)]
         src = (kp[:, 0] * m + kp[:, 1]) * m + kp[:, 2]
         for s in itertools.product((0, 1), repeat=3):
-            index.append(src[np.argsort(flat)])
-            sign.append(np.where((kp @ np.array(s)) % 2 == 1, -1.0, 1.0)[np.argsort(flat)])
+            index.append(src)
+            sign.append(np.where((kp @ np.array(s)) % 2 == 1, -1.0, 1.0))
     return np.array(index), np.array(sign)
 
 
@@ -386,7 +385,7 @@ def pcavox_projection_embedding(P, *, frequencies: int = PCAVOX_EMBEDDING_FREQUE
     """Short vectors invariant to the 48 symmetries whose Euclidean distance bounds
     :func:`pcavox_projection_distance` (so the pcavox distance) from below.
 
-    From a projection row: the coefficients of the lowest ``frequencies`` per axis, in
+    From projection rows ``(N, m³ + 1)``: the coefficients of the lowest ``frequencies`` per axis, in
     absolute value (a reflection only flips signs), sorted within each orbit of frequency
     triples under axis permutations (a permutation moves values within their orbits; by the
     rearrangement inequality sorted matching is the closest). ``(N, frequencies³)`` float64.
