@@ -1152,11 +1152,8 @@ class ShapeIndex:
         bounded = [c for c in weights if c not in vec and bounds.get(c) is not None]
         rows_by_c = {}
         for c in weights:  # the candidates' rows; a shape lacking a component is dropped
-            if c in vec:
-                rows = vec[c].rows_of(paths)
-                rows_by_c[c] = {p: r for p, r in zip(paths, rows.tolist(), strict=True) if r >= 0}
-            elif c in bounded:  # rows of its lower-bound vectors; the descriptor is read later
-                rows = bounds[c].rows_of(paths)
+            if c in vec or c in bounded:  # sidecar positions (of the bound's rows for bounded ones)
+                rows = (vec[c] if c in vec else bounds[c]).rows_of(paths)
                 rows_by_c[c] = {p: r for p, r in zip(paths, rows.tolist(), strict=True) if r >= 0}
             else:
                 rows_by_c[c] = self._stored_rows(c, pkeys[c], paths)
