@@ -66,6 +66,15 @@ def test_sensitivity_variants_cover_the_required_defaults():
     assert ("lb_k 60 → 30 (×0.5)", {"lb_k": 30}) in variants
 
 
+def test_sets_are_selected_by_name_in_suite_order():
+    from geoshape.errors import InvalidOptionError
+
+    assert [s.name for s in suite.selected_sets(None)] == [s.name for s in suite.DEV_SETS]
+    assert [s.name for s in suite.selected_sets("nonisometric, scape")] == ["scape", "nonisometric"]
+    with pytest.raises(InvalidOptionError, match="dev set must be one of .*tosca_hires.*got 'tosca'"):
+        suite.selected_sets("scape,tosca")
+
+
 def test_generated_set_is_reused_only_with_the_same_parameters(tmp_path, monkeypatch):
     spec = suite.DevSet("noniso", "pairs.csv", generator="nonisometric", params={"pairs": 3, "seed": 0})
     (tmp_path / "noniso").mkdir()

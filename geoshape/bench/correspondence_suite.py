@@ -182,6 +182,19 @@ def sensitivity_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, dict]]:
     return out
 
 
+def selected_sets(names: str | None) -> list[DevSet]:
+    """The dev sets named in the comma-separated ``names`` (all when None), in suite order;
+    an unknown name raises :class:`~geoshape.errors.InvalidOptionError` listing the valid ones."""
+    if not names:
+        return list(DEV_SETS)
+    from geoshape._options import check_choice
+
+    wanted = [n.strip() for n in names.split(",") if n.strip()]
+    for name in wanted:
+        check_choice("dev set", name, [s.name for s in DEV_SETS])
+    return [s for s in DEV_SETS if s.name in wanted]
+
+
 def run_suite(args: argparse.Namespace) -> int:
     """The suite table (every dev set, the geoshape method and its peer), or with
     ``--sensitivity`` the sensitivity table instead (geoshape only, its own section)."""
@@ -189,7 +202,7 @@ def run_suite(args: argparse.Namespace) -> int:
 
     dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
     log = lambda text: print(text, flush=True)  # noqa: E731
-    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in DEV_SETS]
+    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in selected_sets(getattr(args, "sets", None))]
     if args.sensitivity:
         return _run_sensitivity(args, sets, log)
     methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
@@ -225,7 +238,8 @@ def _run_table(args, sets, methods, log) -> int:
         for m in methods:
             rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
     limit = f" --limit {args.limit}" if args.limit else ""
-    cmd = (f"geoshape bench correspondence --suite generalization{limit} --methods {','.join(methods)} "
+    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+    cmd = (f"geoshape bench correspondence --suite generalization{only}{limit} --methods {','.join(methods)} "
            f"--landmarks {args.landmarks}")
     text = (f"### 3D correspondence — generalization suite (issue #14)\n\nCommand: `{cmd}`. "
             f"Sets: {_set_list(sets)}{_spread_note(args.limit)}; "
@@ -249,6 +263,7 @@ def _run_sensitivity(args, sets, log) -> int:
     from geoshape.bench.results import markdown_table
 
     header = ["geoshape option"] + [s.name for s, _ in sets]
+    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
     body = []
     for label, options in [("default", {})] + sensitivity_variants():
         log(f"== sensitivity: {label}")
@@ -261,7 +276,7 @@ def _run_sensitivity(args, sets, log) -> int:
         body.append(row)
     limit = f" --limit {args.limit}" if args.limit else ""
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
-            f"Command: `geoshape bench correspondence --suite generalization --sensitivity{limit} "
+            f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
             f"error per set (as in the generalization suite) of the geoshape method with one default "
             f"changed ×0.5 and ×2 (counts rounded, at least 1) ({machine_note()}).\n\n"
