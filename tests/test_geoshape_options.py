@@ -92,7 +92,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 21
+    assert len(GeoshapeOptions.names()) == 23
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
@@ -122,6 +122,9 @@ def test_candidate_summary_keeps_the_alternatives_fields():
     assert spectral.cost == 2.5 and not spectral.refined
     spectral.refined_map, spectral.refined_energy, spectral.refined_orientation = np.zeros(3), 0.05, 0.8
     assert list(spectral.summary())[-2:] == ["refined_energy", "refined_orientation"]
+    spectral.coarse_distortion = 0.2
+    assert list(spectral.summary())[5] == "coarse_distortion"
+    assert pipeline.screening_score(spectral) == pytest.approx(0.02)
     descriptors = Candidate(source="descriptors", refined_map=np.zeros(3), refined_energy=0.04,
                             refined_orientation=0.7)
     assert descriptors.summary() == {"source": "descriptors", "refined_energy": 0.04,
@@ -147,3 +150,50 @@ def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
         assert pipeline.decide(pool, GeoshapeOptions()) is pool[1]
     # nothing of the wanted orientation: the best mirrored map rather than nothing
     assert pipeline.decide([mirrored, refined(0.02, 0.1, True)], GeoshapeOptions()) is mirrored
+    # a map mirrored on half the surface (orientation near 0, its sign barely right) counts
+    # its distortion × energy per share of correctly oriented surface
+    half_mirrored = dataclasses.replace(refined(0.02, 0.1, False), orientation_share=0.52)
+    kept = dataclasses.replace(refined(0.025, 0.1, False), orientation_share=0.9)
+    assert pipeline.decide([half_mirrored, kept], GeoshapeOptions()) is kept
+    assert pipeline.decision_score(kept) == pytest.approx(0.0025 / 0.9)
+
+
+def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
+    monkeypatch.setattr(pipeline, "refine_map", lambda *a, **k: (np.zeros(3, dtype=np.int64), 0.1, 0.6))
+    for prefer, share, unwanted in (("preserving", 0.8, False), ("reversing", 0.2, True)):
+        c = pipeline._refine_into(None, Candidate(), None, GeoshapeOptions(prefer=prefer))
+        assert c.orientation_share == pytest.approx(share) and c.unwanted is unwanted
+
+
+@pytest.mark.slow
+def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map():
+    """A planted mirrored candidate: a standing figure matched to itself through its front↔back
+    reflection (hands and head stay, the feet point backwards). Re-solved with the
+    orientation term, pinned by its own landmarks, it becomes the orientation-preserving map
+    through the same ends: the identity."""
+    from geoshape_datasets_gen.articulated3d import generate_figure
+
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.geometry.knn import nearest
+
+    fig = generate_figure("biped", poses=1, seed=3, target_vertices=900, resolution=64)
+    V, F = fig.poses[0], fig.F
+    m1, m2 = PreparedMesh(V, F), PreparedMesh(V.copy(), F.copy())
+    options = GeoshapeOptions()
+    A, B, _ = pipeline.candidate_alignments(m1, m2, options, {})
+    ctx = pipeline.pair_context(m1, m2, A, B, options, {})
+    front_back = nearest(V * [1, 1, -1], V)[1]  # the figure faces +z
+    size = np.ptp(V, axis=0).max()
+    mirrored = Candidate(refined_map=front_back, refined_energy=1.0, distortion=1.0, unwanted=True,
+                         refined_orientation=pipeline.orientation_of(ctx, front_back, ctx.s1))
+    assert mirrored.refined_orientation < -0.5
+    assert np.median(np.linalg.norm(V[front_back] - V, axis=1)) > 0.05 * size
+    direct = Candidate(refined_map=np.arange(len(V)), refined_energy=0.5, distortion=0.5, unwanted=False)
+
+    [repaired] = pipeline.orientation_repair(ctx, [direct, mirrored], options, {})
+    assert repaired.source == "repaired" and not repaired.unwanted and repaired.refined_orientation > 0.5
+    assert np.median(np.linalg.norm(V[repaired.refined_map] - V, axis=1)) < 0.02 * size
+    # nothing mirrored, or the stage turned off: no repair
+    assert pipeline.orientation_repair(ctx, [direct], options, {}) == []
+    off = dataclasses.replace(options, orientation_repair=False)
+    assert pipeline.orientation_repair(ctx, [direct, mirrored], off, {}) == []

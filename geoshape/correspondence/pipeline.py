@@ -5,10 +5,12 @@
 
 1. :func:`candidate_alignments` — spectral embeddings and the signed eigenvector orders;
 2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
-3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut;
-4. :func:`refine` — the cheapest screened candidates refined by ZoomOut, plus
-   :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion` and,
-   when the best map is mirrored, :func:`complete_symmetry`;
+3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut, then
+   ranked by :func:`screening_score` (the decision objective on the coarse maps);
+4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus
+   :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion`,
+   :func:`orientation_repair` of the best mirrored and descriptor maps and, when the best map is still
+   mirrored, :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
 6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
    full-resolution ZoomOut to ``final_k`` for precision.
@@ -109,6 +111,10 @@ class GeoshapeOptions:
     """Basis size of the descriptor functional map (skipped below 3 after clipping to ``lb_k``)."""
     distortion_samples: int = field(default=128, metadata=_int(1))
     """Farthest samples of mesh 1 whose pairwise geodesics measure a refined map's distortion."""
+    orientation_repair: bool = field(default=True, metadata=_BOOL)
+    """Add the best mirrored and descriptor maps re-solved with the orientation term, pinned by their ends."""
+    repair_landmarks: int = field(default=8, metadata=_int(1))
+    """Landmarks pinning the orientation repair: the first farthest samples of mesh 1 (a body's ends)."""
 
     def __post_init__(self):
         check_choice("geoshape option reorder", self.reorder, REORDER_METHODS)
@@ -157,7 +163,8 @@ class GeoshapeOptions:
 class Candidate:
     """One candidate map of mesh 1 onto mesh 2, with its scores by name.
 
-    Screening fills ``coarse_map``, ``zoomout_energy`` and ``orientation``; refinement fills
+    Screening fills ``coarse_map``, ``zoomout_energy``, ``orientation`` and
+    ``coarse_distortion``; refinement fills
     ``refined_map``, ``refined_energy``, ``refined_orientation`` and ``unwanted``;
     :func:`measure_distortion` fills ``distortion``. Energies are ‖CᵀC − I‖_F / k of the functional map C
     (0 for an isometry, lower is better); orientation scores are in [−1, 1] (+1: every
@@ -165,7 +172,8 @@ class Candidate:
     """
 
     source: str = "spectral"
-    """``"spectral"`` (a signed eigenvector order) or ``"descriptors"`` (wave kernel signatures)."""
+    """``"spectral"`` (a signed eigenvector order), ``"descriptors"`` (wave kernel signatures) or
+    ``"repaired"`` (:func:`orientation_repair`)."""
     alignment: Alignment | None = None
     """The signed column order of mesh 2's embedding (spectral candidates), else None."""
     coarse_map: np.ndarray | None = None
@@ -174,6 +182,8 @@ class Candidate:
     """Functional-map energy after the coarse screening ZoomOut."""
     orientation: float | None = None
     """Orientation score of the coarse map."""
+    coarse_distortion: float | None = None
+    """:func:`geodesic_distortion` of the coarse map (screening ranks by :func:`screening_score`)."""
     refined_map: np.ndarray | None = None
     """Refined map: every vertex of mesh 1 → refinement samples of mesh 2 (large: samples only)."""
     refined_energy: float | None = None
@@ -182,6 +192,8 @@ class Candidate:
     """Orientation score of the refined map."""
     unwanted: bool | None = None
     """The refined map has the orientation that ``prefer`` does not ask for."""
+    orientation_share: float | None = None
+    """``(1 ± refined_orientation) / 2``: share of the surface mapped with the orientation asked for."""
     symmetry_completed: bool = False
     """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
     distortion: float | None = None
@@ -199,12 +211,14 @@ class Candidate:
 
     def summary(self) -> dict:
         """The candidate as one entry of ``Correspondence.alternatives`` (JSON output)."""
-        if self.source == "descriptors":
-            out = {"source": "descriptors"}
+        if self.alignment is None:
+            out = {"source": self.source}
         else:
             a = self.alignment
             out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy,
                    "orientation": self.orientation}
+            if self.coarse_distortion is not None:
+                out["coarse_distortion"] = self.coarse_distortion
         if self.refined:
             out.update(refined_energy=self.refined_energy, refined_orientation=self.refined_orientation)
         if self.distortion is not None:
@@ -342,10 +356,12 @@ def orientation_of(ctx: PairContext, p2p: np.ndarray, rows: np.ndarray) -> float
 
 def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
     """Stage 3: one :class:`Candidate` per alignment, in the same order, with its coarse map,
-    ``zoomout_energy`` and ``orientation``: TPS-ICP O(iter c^3) on ``n_controls`` controls,
-    then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples
-    O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed order
-    only 5th–15th).
+    ``zoomout_energy``, ``orientation`` and ``coarse_distortion``: TPS-ICP O(iter c^3) on
+    ``n_controls`` controls, then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples``
+    samples O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed
+    order only 5th–15th), then :func:`geodesic_distortion` of every coarse map on the
+    ``distortion_samples`` rows the decision uses (Dijkstra from the distinct images, at most
+    ``screen_samples`` sources on mesh 2).
     """
     from geoshape.correspondence.fmaps.zoomout import zoomout
     from geoshape.geometry.sampling import euclidean_farthest_point_sampling
@@ -368,8 +384,22 @@ def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings
                                  return_energy=True, samples_only=large, final_on_samples=not large)
         candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy,
                                     orientation=orientation_of(ctx, coarse, c1)))
+    rows = c1[:options.distortion_samples]
+    at = slice(0, len(rows)) if large else rows
+    distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates])
+    for c, d in zip(candidates, distortions, strict=True):
+        c.coarse_distortion = d
     timings["screening"] = time.perf_counter() - t
     return candidates
+
+
+def screening_score(c: Candidate) -> float:
+    """The rank of a screened candidate: :func:`decision_score` on the coarse map (coarse
+    distortion × coarse ZoomOut energy), so refinement goes to the candidates the decision
+    would favour. The energy alone ranks the best-refined map anywhere from 1st to 37th of
+    38 on the non-isometric dev pairs (a thick and a slim body give every coarse map a
+    similar energy); the distortion sees which parts go where."""
+    return c.coarse_distortion * c.zoomout_energy
 
 
 def refine_map(ctx: PairContext, init: np.ndarray, options: GeoshapeOptions, *,
@@ -400,13 +430,15 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
     """Refine ``init`` and store map and scores in ``c``; returns ``c``."""
     c.refined_map, c.refined_energy, c.refined_orientation = refine_map(ctx, init, options, **kwargs)
     c.unwanted = is_unwanted(c.refined_orientation, options.prefer)
+    sign = 1.0 if options.prefer == "preserving" else -1.0
+    c.orientation_share = (1.0 + sign * c.refined_orientation) / 2.0
     return c
 
 
 def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
            timings: dict) -> list[Candidate]:
-    """Stage 4: refine the ``max(n_refine, 1)`` cheapest of ``ranked`` (sorted by
-    ``zoomout_energy``, whatever their coarse orientation: coarse scores are weak); while
+    """Stage 4: refine the ``max(n_refine, 1)`` first of ``ranked`` (sorted by
+    :func:`screening_score`, whatever their coarse orientation: coarse orientation is weak); while
     every refined map has the unwanted orientation, refine the candidate of most wanted
     coarse orientation next, at most ``max(n_refine, 1)`` more. Fills the refined scores and
     returns the refined candidates in the order refined; O(n_refine · iter s^2 lb_k).
@@ -460,9 +492,68 @@ def descriptor_candidates(ctx: PairContext, options: GeoshapeOptions, timings: d
     return out
 
 
+def orientation_repair(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
+                       timings: dict) -> list[Candidate]:
+    """Stage 4c: candidates whose ends are trusted but not their interior, each re-solved as a
+    functional map with the orientation term and descriptors pinned by its own landmarks:
+    the refined map of unwanted orientation with the lowest :func:`decision_score`, and the
+    best-scoring descriptor map. Empty when there are neither (or ``orientation_repair`` is
+    off, or fewer than 3 eigenpairs are usable).
+
+    Why: on a human body the spectral candidates can come out mirrored front↔back on the
+    torso only, with the hands, feet and head in the right place (orientation score about
+    −0.6, not −0.9); neither the decision nor composing with mesh 2's own symmetries turns
+    that into the right map. The descriptor map has the ends right as well (its own
+    orientation term) but, on remeshed or non-isometric pairs, not the interior (0.08–0.11
+    on remeshed SCAPE pairs where every spectral map was a half-turn). The landmarks — the
+    first ``repair_landmarks`` farthest samples of mesh 1, the ends of a body, and their
+    images — tell left from right. Their geodesic distance functions (÷ √area of each mesh)
+    as descriptors, with the multiplication and orientation commutativity terms of
+    :func:`descriptor_functional_map`, leave one consistent map: the orientation-preserving
+    one through the same ends. On a plain left–right mirror the same problem gives the
+    half-turn, which competes in the decision like any candidate. Cost per repaired map:
+    Dijkstra from the landmarks on both meshes, the operators O(m kd (kd + L)), one kd² solve
+    and one refinement from kd (kd = ``descriptor_k``).
+    """
+    kd = min(options.descriptor_k, ctx.lb_k)
+    if not (options.orientation_repair and kd >= 3):
+        return []
+    sources = [c for c in refined if c.unwanted]
+    if not sources:
+        return []
+    sources = [min(sources, key=decision_score)]
+    from geoshape.correspondence.fmaps.descriptor_fmap import (
+        descriptor_functional_map,
+        operators_of_descriptors,
+    )
+    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
+    from geoshape.geometry.mesh import face_areas
+
+    t = time.perf_counter()
+    n = min(options.repair_landmarks, len(ctx.c1))
+    landmarks1 = ctx.c1[:n]
+
+    def pinned_operators(m, basis, landmarks):
+        D = m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
+        return operators_of_descriptors(m.V, m.F, basis, D, k=kd)
+
+    ops1 = pinned_operators(ctx.m1, ctx.b1, landmarks1)
+    out = []
+    for source in sources:
+        # refined maps are aligned with the refinement samples (large meshes), whose prefix is c1
+        landmarks2 = source.refined_map[:n] if ctx.large else source.refined_map[landmarks1]
+        C = descriptor_functional_map(ops1, pinned_operators(ctx.m2, ctx.b2, landmarks2),
+                                      orientation=options.prefer)
+        init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
+        out.append(_refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True,
+                                k_start=kd))
+    timings["orientation_repair"] = time.perf_counter() - t
+    return out
+
+
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
                       timings: dict) -> Candidate | None:
-    """Stage 4c: when the refined map of lowest :func:`decision_score` has the unwanted
+    """Stage 4d: when the refined map of lowest :func:`decision_score` has the unwanted
     orientation, that map followed by the intrinsic left–right symmetry of mesh 2 (mesh 2
     matched to itself with ``prefer="reversing"``) is a wanted-orientation candidate as
     isometric as it. Returns the completed candidate (its distortion not yet measured), or
@@ -531,16 +622,20 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
 
 
 def decision_score(c: Candidate) -> float:
-    """The one objective every refined candidate is ranked by: geodesic distortion × functional
-    map energy (lower is better).
+    """The one objective every refined candidate is ranked by (lower is better): geodesic
+    distortion × functional map energy ÷ the share of the surface whose orientation the map
+    keeps as asked (``orientation_share``).
 
-    Both factors are unit-free and 0 for an isometry: the distortion compares normalised
-    geodesic distances on sample pairs (sees which parts go where), the energy is the
-    distance of the refined functional map from orthonormality (sees the whole spectrum,
-    e.g. a front↔back mirror that distortion alone can miss). A product weighs a relative
-    change of either the same (equal weights in log space), so there is no weight to set.
+    Every factor is unit-free and at its best for an orientation-keeping isometry (0, 0 and
+    1): the distortion compares normalised geodesic distances on sample pairs (sees which
+    parts go where), the energy is the distance of the refined functional map from
+    orthonormality (sees the whole spectrum, e.g. a front↔back mirror that distortion alone
+    can miss), the share sees a map mirrored on part of the surface (orientation near 0)
+    that the sign test of :func:`decide` lets through. A product weighs a relative change of
+    any factor the same (equal weights in log space), so there is no weight to set.
     """
-    return c.distortion * c.refined_energy
+    share = 1.0 if c.orientation_share is None else max(c.orientation_share, 1e-6)
+    return c.distortion * c.refined_energy / share
 
 
 def decide(refined: list[Candidate], options: GeoshapeOptions) -> Candidate:
@@ -594,9 +689,10 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
 
 
 def alternatives(ranked: list[Candidate], refined: list[Candidate]) -> list[dict]:
-    """``Correspondence.alternatives``: every screened candidate by ``zoomout_energy``, then
-    every refined descriptor candidate (see :meth:`Candidate.summary`)."""
-    return [c.summary() for c in ranked] + [c.summary() for c in refined if c.source == "descriptors"]
+    """``Correspondence.alternatives``: every screened candidate by :func:`screening_score`, then
+    every refined candidate that is not a signed order (descriptor maps, the orientation
+    repair; see :meth:`Candidate.summary`)."""
+    return [c.summary() for c in ranked] + [c.summary() for c in refined if c.alignment is None]
 
 
 def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> Correspondence:
@@ -611,10 +707,13 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     timings: dict = {}
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)
-    ranked = sorted(screen(ctx, alignments, options, timings), key=lambda c: c.zoomout_energy)
+    ranked = sorted(screen(ctx, alignments, options, timings), key=screening_score)
     refined = refine(ctx, ranked, options, timings)
     refined += descriptor_candidates(ctx, options, timings)
     measure_distortion(ctx, refined, options, timings)
+    repaired = orientation_repair(ctx, refined, options, timings)
+    measure_distortion(ctx, repaired, options, timings)
+    refined += repaired
     completed = complete_symmetry(ctx, refined, options, timings)
     if completed is not None:
         measure_distortion(ctx, [completed], options, timings)
