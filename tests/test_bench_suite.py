@@ -73,6 +73,8 @@ def test_sets_are_selected_by_name_in_suite_order():
     assert [s.name for s in suite.selected_sets("nonisometric, scape")] == ["scape", "nonisometric"]
     with pytest.raises(InvalidOptionError, match="dev set must be one of .*tosca_hires.*got 'tosca'"):
         suite.selected_sets("scape,tosca")
+    with pytest.raises(InvalidOptionError, match="names no dev set"):
+        suite.selected_sets(" , ")
 
 
 def test_generated_set_is_reused_only_with_the_same_parameters(tmp_path, monkeypatch):

@@ -52,7 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --suite: folder of the generated dev sets, reused when their generator "
                    "parameters match (default $XDG_CACHE_HOME/geoshape/dev-sets or ~/.cache/…)")
     p.add_argument("--sets", default=None,
-                   help="with --suite: comma-separated dev sets to run (default: all; names as in the table)")
+                   help="with --suite: comma-separated dev sets (default: all, names as in the table); "
+                   "the RESULTS section then holds only these (--section to write another)")
     p.add_argument("--sensitivity", action="store_true",
                    help="with --suite: instead of the suite table, the mean error of each numeric default of "
                    "the geoshape method ×0.5 and ×2 (its own RESULTS section; long: use --limit)")

@@ -190,6 +190,11 @@ def selected_sets(names: str | None) -> list[DevSet]:
     from geoshape._options import check_choice
 
     wanted = [n.strip() for n in names.split(",") if n.strip()]
+    if not wanted:
+        from geoshape.errors import InvalidOptionError
+
+        valid = ", ".join(s.name for s in DEV_SETS)
+        raise InvalidOptionError(f"--sets {names!r} names no dev set; valid: {valid}")
     for name in wanted:
         check_choice("dev set", name, [s.name for s in DEV_SETS])
     return [s for s in DEV_SETS if s.name in wanted]

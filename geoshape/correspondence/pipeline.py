@@ -9,7 +9,7 @@
    ranked by :func:`screening_score` (the decision objective on the coarse maps);
 4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus
    :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion`,
-   :func:`orientation_repair` of the best mirrored and descriptor maps and, when the best map is still
+   :func:`orientation_repair` of the best mirrored map and, when the best map is still
    mirrored, :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
 6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
@@ -112,7 +112,7 @@ class GeoshapeOptions:
     distortion_samples: int = field(default=128, metadata=_int(1))
     """Farthest samples of mesh 1 whose pairwise geodesics measure a refined map's distortion."""
     orientation_repair: bool = field(default=True, metadata=_BOOL)
-    """Add the best mirrored and descriptor maps re-solved with the orientation term, pinned by their ends."""
+    """Add the best mirrored map re-solved with the orientation term, pinned by its ends."""
     repair_landmarks: int = field(default=8, metadata=_int(1))
     """Landmarks pinning the orientation repair: the first farthest samples of mesh 1 (a body's ends)."""
 
@@ -394,11 +394,12 @@ def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings
 
 
 def screening_score(c: Candidate) -> float:
-    """The rank of a screened candidate: :func:`decision_score` on the coarse map (coarse
-    distortion × coarse ZoomOut energy), so refinement goes to the candidates the decision
-    would favour. The energy alone ranks the best-refined map anywhere from 1st to 37th of
-    38 on the non-isometric dev pairs (a thick and a slim body give every coarse map a
-    similar energy); the distortion sees which parts go where."""
+    """The rank of a screened candidate: the isometry part of :func:`decision_score` on the
+    coarse map (coarse distortion × coarse ZoomOut energy; coarse orientation is too weak to
+    count), so refinement goes to the candidates the decision would favour. The energy
+    alone ranks the best-refined map anywhere from 1st to 37th of 38 on the non-isometric
+    dev pairs (a thick and a slim body give every coarse map a similar energy); the
+    distortion sees which parts go where."""
     return c.coarse_distortion * c.zoomout_energy
 
 
@@ -494,26 +495,25 @@ def descriptor_candidates(ctx: PairContext, options: GeoshapeOptions, timings: d
 
 def orientation_repair(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> list[Candidate]:
-    """Stage 4c: candidates whose ends are trusted but not their interior, each re-solved as a
-    functional map with the orientation term and descriptors pinned by its own landmarks:
-    the refined map of unwanted orientation with the lowest :func:`decision_score`, and the
-    best-scoring descriptor map. Empty when there are neither (or ``orientation_repair`` is
-    off, or fewer than 3 eigenpairs are usable).
+    """Stage 4c: the refined map of unwanted orientation with the lowest :func:`decision_score`,
+    re-solved as a functional map with the orientation term and descriptors pinned by its
+    own ends (a list of one); empty when no refined map has the unwanted orientation (or
+    ``orientation_repair`` is off, or fewer than 3 eigenpairs are usable).
 
     Why: on a human body the spectral candidates can come out mirrored front↔back on the
     torso only, with the hands, feet and head in the right place (orientation score about
     −0.6, not −0.9); neither the decision nor composing with mesh 2's own symmetries turns
-    that into the right map. The descriptor map has the ends right as well (its own
-    orientation term) but, on remeshed or non-isometric pairs, not the interior (0.08–0.11
-    on remeshed SCAPE pairs where every spectral map was a half-turn). The landmarks — the
-    first ``repair_landmarks`` farthest samples of mesh 1, the ends of a body, and their
-    images — tell left from right. Their geodesic distance functions (÷ √area of each mesh)
-    as descriptors, with the multiplication and orientation commutativity terms of
-    :func:`descriptor_functional_map`, leave one consistent map: the orientation-preserving
-    one through the same ends. On a plain left–right mirror the same problem gives the
-    half-turn, which competes in the decision like any candidate. Cost per repaired map:
-    Dijkstra from the landmarks on both meshes, the operators O(m kd (kd + L)), one kd² solve
-    and one refinement from kd (kd = ``descriptor_k``).
+    that into the right map. Its landmarks — the first ``repair_landmarks`` farthest samples
+    of mesh 1, the ends of a body, and their images — still tell left from right. Their
+    geodesic distance functions (÷ √area of each mesh) as descriptors, with the
+    multiplication and orientation commutativity terms of :func:`descriptor_functional_map`,
+    leave one consistent map: the orientation-preserving one through the same ends. On a
+    plain left–right mirror the same problem gives the half-turn, which competes in the
+    decision like any candidate; the score's orientation share makes the least mirrored
+    map the one repaired. Cost: Dijkstra from the landmarks on both meshes, the operators
+    O(m kd (kd + L)), one kd² solve and one refinement from kd (kd = ``descriptor_k``).
+    A trial that also repaired the best descriptor map gained nothing (remeshed SCAPE,
+    tosca_r5k, non-isometric dev sets) and cost one more solve.
     """
     kd = min(options.descriptor_k, ctx.lb_k)
     if not (options.orientation_repair and kd >= 3):
@@ -532,6 +532,8 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     t = time.perf_counter()
     n = min(options.repair_landmarks, len(ctx.c1))
     landmarks1 = ctx.c1[:n]
+    # large meshes: maps are aligned with the refinement samples; find the landmarks among them
+    at = nearest(ctx.m1.V[landmarks1], ctx.m1.V[ctx.s1])[1] if ctx.large else landmarks1
 
     def pinned_operators(m, basis, landmarks):
         D = m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
@@ -540,8 +542,7 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     ops1 = pinned_operators(ctx.m1, ctx.b1, landmarks1)
     out = []
     for source in sources:
-        # refined maps are aligned with the refinement samples (large meshes), whose prefix is c1
-        landmarks2 = source.refined_map[:n] if ctx.large else source.refined_map[landmarks1]
+        landmarks2 = source.refined_map[at]
         C = descriptor_functional_map(ops1, pinned_operators(ctx.m2, ctx.b2, landmarks2),
                                       orientation=options.prefer)
         init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
@@ -558,6 +559,9 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
     matched to itself with ``prefer="reversing"``) is a wanted-orientation candidate as
     isometric as it. Returns the completed candidate (its distortion not yet measured), or
     None. Cost when it fires: one more pipeline run on (mesh 2, mesh 2) and one refinement.
+    The score counts the share of the surface with the wanted orientation, so this fires
+    only when no wanted map scores better than the mirrored one despite that share (a
+    clean mirror's share is about 0.05): mostly when every candidate is mirrored.
     """
     if not (options.symmetry_completion and options.prefer == "preserving" and refined):
         return None
@@ -565,8 +569,11 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
     if not best.unwanted:
         return None
     t = time.perf_counter()
+    # the self-run looks for mesh 2's mirror: repairing its best orientation-keeping map (the
+    # identity) would only add a candidate
     mirror = run_geoshape(ctx.m2, ctx.m2, dataclasses.replace(options, prefer="reversing",
-                                                              symmetry_completion=False))
+                                                              symmetry_completion=False,
+                                                              orientation_repair=False))
     completed = None
     if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
         completed = dataclasses.replace(best, symmetry_completed=True, distortion=None)
@@ -594,7 +601,9 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
     if not targets:
         return []
     sources, where = np.unique(np.concatenate(targets), return_inverse=True)
-    D2_all = m2.solver("graph").distances(sources)[:, sources]
+    solver = m2.solver("graph")  # blocks of sources: memory O(block n), not O(u n)
+    D2_all = np.vstack([solver.distances(sources[b:b + 64])[:, sources]
+                        for b in range(0, len(sources), 64)])
     out = []
     for i in range(len(targets)):
         pos = where[i * len(rows1):(i + 1) * len(rows1)]
