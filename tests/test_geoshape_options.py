@@ -166,7 +166,7 @@ def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
 
 
 @pytest.mark.slow
-def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map():
+def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkeypatch):
     """A planted mirrored candidate: a standing figure matched to itself through its front↔back
     reflection (hands and head stay, the feet point backwards). Re-solved with the
     orientation term, pinned by its own landmarks, it becomes the orientation-preserving map
@@ -193,6 +193,16 @@ def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map():
     [repaired] = pipeline.orientation_repair(ctx, [direct, mirrored], options, {})
     assert repaired.source == "repaired" and not repaired.unwanted and repaired.refined_orientation > 0.5
     assert np.median(np.linalg.norm(V[repaired.refined_map] - V, axis=1)) < 0.02 * size
+    # large-mesh mode: maps live on the refinement samples; the same repair
+    monkeypatch.setattr(pipeline, "LARGE_MESH", 500)
+    small = dataclasses.replace(options, zoomout_samples=400, screen_samples=200)
+    ctx_large = pipeline.pair_context(m1, m2, A, B, small, {})
+    assert ctx_large.large
+    s1 = ctx_large.s1
+    on_samples = [dataclasses.replace(c, refined_map=c.refined_map[s1]) for c in (direct, mirrored)]
+    [repaired_large] = pipeline.orientation_repair(ctx_large, on_samples, small, {})
+    assert repaired_large.refined_map.shape == s1.shape and repaired_large.refined_orientation > 0.5
+    assert np.median(np.linalg.norm(V[repaired_large.refined_map] - V[s1], axis=1)) < 0.02 * size
     # nothing mirrored, or the stage turned off: no repair
     assert pipeline.orientation_repair(ctx, [direct], options, {}) == []
     off = dataclasses.replace(options, orientation_repair=False)

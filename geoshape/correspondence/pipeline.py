@@ -533,7 +533,7 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     n = min(options.repair_landmarks, len(ctx.c1))
     landmarks1 = ctx.c1[:n]
     # large meshes: maps are aligned with the refinement samples; find the landmarks among them
-    at = nearest(ctx.m1.V[landmarks1], ctx.m1.V[ctx.s1])[1] if ctx.large else landmarks1
+    at = nearest(ctx.m1.V[ctx.s1], ctx.m1.V[landmarks1])[1] if ctx.large else landmarks1
 
     def pinned_operators(m, basis, landmarks):
         D = m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
