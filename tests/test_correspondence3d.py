@@ -69,6 +69,31 @@ def test_geodesic_distortion_shares_one_dijkstra_among_maps_with_common_images()
     assert together[0] == together[2] == pytest.approx(0.0, abs=1e-12) and together[1] > 0.1
 
 
+def test_geodesic_distortion_within_a_vertex_set_caches_dijkstra_rows_across_calls(monkeypatch):
+    from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
+    from geoshape.geometry.geodesics import GeodesicSolver
+
+    V, _, F = figure()
+    m1, m2 = PreparedMesh(V, F), PreparedMesh(V, F)
+    rows = np.arange(0, len(V), len(V) // 25)
+    within = np.arange(0, len(V), 3)
+    first = within[np.random.default_rng(1).permutation(len(within))[: len(rows)]]
+    second = np.concatenate([first[:-3], within[-3:]])  # three images not seen before
+    plain = [geodesic_distortion(m1, m2, rows, t)[0] for t in (first, second)]
+    geodesic_distortion(m1, m2, rows, rows)  # mesh 1's rows are cached from here on
+    counted = []
+    original = GeodesicSolver.distances
+    monkeypatch.setattr(GeodesicSolver, "distances",
+                        lambda self, sources: counted.append(len(np.atleast_1d(sources)))
+                        or original(self, sources))
+    cached = [geodesic_distortion(m1, m2, rows, t, within=within)[0] for t in (first, second)]
+    assert cached == pytest.approx(plain, abs=1e-12)
+    assert counted == [len(np.unique(first)), 3]
+    outside = np.setdiff1d(np.arange(len(V)), within)[: len(rows)]  # not in the set: still measured
+    assert geodesic_distortion(m1, m2, rows, outside, within=within) == pytest.approx(
+        geodesic_distortion(m1, m2, rows, outside), abs=1e-12)
+
+
 def test_laplacian_of_fewer_pairs_is_a_view_of_the_larger_solve():
     from geoshape.correspondence.mesh_matching import PreparedMesh
 

@@ -304,7 +304,7 @@ def correspond(V1, F1=None, V2=None, F2=None, method: str = DEFAULT_METHOD, *, b
     ``geoshape`` on two 5k-vertex meshes: two Nyström embeddings O(l n log n), the
     exhaustive reordering O(k! 2^k s^2) on s = 300 samples, n_keep × (TPS-ICP O(c^3) +
     ZoomOut O(iter · s^2 k)), two Laplacian eigenproblems, a final map O(n1 n2 k)
-    (O(n1 c k) with c = 64 spatial candidates above 8000 vertices); symmetry completion
+    (O(n1 c k) with c = 64 spatial candidates above 1000 vertices); symmetry completion
     adds one screening and refinement of mesh 2 against itself. Measured times are in
     docs/RESULTS.md (``geoshape bench correspondence``).
     """

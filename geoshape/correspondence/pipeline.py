@@ -163,8 +163,8 @@ class GeoshapeOptions:
 class Candidate:
     """One candidate map of mesh 1 onto mesh 2, with its scores by name.
 
-    Screening fills ``coarse_map``, ``zoomout_energy``, ``orientation`` and
-    ``coarse_distortion``; refinement fills
+    Screening fills ``coarse_map``, ``zoomout_energy`` and ``coarse_distortion``
+    (``orientation`` only when :func:`refine` needs it); refinement fills
     ``refined_map``, ``refined_energy``, ``refined_orientation`` and ``unwanted``;
     :func:`measure_distortion` fills ``distortion``. Energies are ‖CᵀC − I‖_F / k of the functional map C
     (0 for an isometry, lower is better); orientation scores are in [−1, 1] (+1: every
@@ -181,7 +181,7 @@ class Candidate:
     zoomout_energy: float | None = None
     """Functional-map energy after the coarse screening ZoomOut."""
     orientation: float | None = None
-    """Orientation score of the coarse map."""
+    """Orientation score of the coarse map (:func:`coarse_orientation`; None until asked for)."""
     coarse_distortion: float | None = None
     """:func:`geodesic_distortion` of the coarse map (screening ranks by :func:`screening_score`)."""
     refined_map: np.ndarray | None = None
@@ -215,8 +215,9 @@ class Candidate:
             out = {"source": self.source}
         else:
             a = self.alignment
-            out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy,
-                   "orientation": self.orientation}
+            out = {"perm": a.perm, "signs": a.signs, "cost": a.cost, "zoomout_energy": self.zoomout_energy}
+            if self.orientation is not None:
+                out["orientation"] = self.orientation
             if self.coarse_distortion is not None:
                 out["coarse_distortion"] = self.coarse_distortion
         if self.refined:
@@ -354,9 +355,18 @@ def orientation_of(ctx: PairContext, p2p: np.ndarray, rows: np.ndarray) -> float
     return orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
 
 
+def coarse_orientation(ctx: PairContext, c: Candidate) -> float:
+    """The orientation score of a screened candidate's coarse map, computed on first use and
+    stored in ``c.orientation`` (O(n1), or O(s) sample triples on large meshes). Screening does
+    not compute it for every candidate: only :func:`refine`'s fallback reads it."""
+    if c.orientation is None:
+        c.orientation = orientation_of(ctx, c.coarse_map, ctx.c1)
+    return c.orientation
+
+
 def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
     """Stage 3: one :class:`Candidate` per alignment, in the same order, with its coarse map,
-    ``zoomout_energy``, ``orientation`` and ``coarse_distortion``: TPS-ICP O(iter c^3) on
+    ``zoomout_energy`` and ``coarse_distortion``: TPS-ICP O(iter c^3) on
     ``n_controls`` controls, then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples``
     samples O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed
     order only 5th–15th), then :func:`geodesic_distortion` of every coarse map on the
@@ -382,11 +392,11 @@ def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings
         coarse, energy = zoomout(ctx.b1, ctx.b2, init, k_start=min(options.zoomout_start, ctx.screen_k),
                                  k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
                                  return_energy=True, samples_only=large, final_on_samples=not large)
-        candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy,
-                                    orientation=orientation_of(ctx, coarse, c1)))
+        candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy))
     rows = c1[:options.distortion_samples]
     at = slice(0, len(rows)) if large else rows
-    distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates])
+    distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates],
+                                      within=ctx.s2)
     for c, d in zip(candidates, distortions, strict=True):
         c.coarse_distortion = d
     timings["screening"] = time.perf_counter() - t
@@ -452,7 +462,7 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     for _ in range(n):
         if not rest or not all(r.unwanted for r in refined):
             break
-        c = max(rest, key=lambda x: (sign * x.orientation, -x.zoomout_energy))
+        c = max(rest, key=lambda x: (sign * coarse_orientation(ctx, x), -x.zoomout_energy))
         rest.remove(c)
         refined.append(_refine_into(ctx, c, c.coarse_map, options))
     timings["refinement"] = time.perf_counter() - t
@@ -521,35 +531,52 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     sources = [c for c in refined if c.unwanted]
     if not sources:
         return []
-    sources = [min(sources, key=decision_score)]
+    source = min(sources, key=decision_score)
+    t = time.perf_counter()
+    ends1, at = repair_landmarks(ctx, options)
+    ends2 = source.refined_map[at]
+    out = [_pinned_candidate(ctx, ends1, _distance_functions(ctx.m2, ends2), options)]
+    timings["orientation_repair"] = time.perf_counter() - t
+    return out
+
+
+def repair_landmarks(ctx: PairContext, options: GeoshapeOptions) -> tuple[np.ndarray, np.ndarray | slice]:
+    """``(landmarks1, at)``: the first ``repair_landmarks`` screening samples of mesh 1 (the
+    ends of a body) and where to read their images in a refined map (large meshes: among the
+    refinement samples, with which the maps are aligned)."""
+    landmarks1 = ctx.c1[:min(options.repair_landmarks, len(ctx.c1))]
+    at = nearest(ctx.m1.V[ctx.s1], ctx.m1.V[landmarks1])[1] if ctx.large else landmarks1
+    return landmarks1, at
+
+
+def _distance_functions(m: PreparedMesh, landmarks: np.ndarray) -> np.ndarray:
+    """(n, L) graph geodesic distance from each landmark, ÷ √area (unit-free)."""
+    from geoshape.geometry.mesh import face_areas
+
+    return m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
+
+
+def _pinned_candidate(ctx: PairContext, ends1: np.ndarray, functions2: np.ndarray,
+                      options: GeoshapeOptions) -> Candidate:
+    """A ``"repaired"`` refined candidate from the functional map whose descriptors are the distance
+    functions from ``ends1`` on mesh 1 and ``functions2`` (n2, L) on mesh 2 (column j: from
+    the image of ``ends1[j]``), with the multiplication and orientation terms of
+    :func:`descriptor_functional_map`; refined from kd = ``descriptor_k``. Mesh 1's operators
+    are cached per landmark set. O(L (n log n + n kd²)) + one kd² solve + one refinement."""
     from geoshape.correspondence.fmaps.descriptor_fmap import (
         descriptor_functional_map,
         operators_of_descriptors,
     )
     from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
-    from geoshape.geometry.mesh import face_areas
 
-    t = time.perf_counter()
-    n = min(options.repair_landmarks, len(ctx.c1))
-    landmarks1 = ctx.c1[:n]
-    # large meshes: maps are aligned with the refinement samples; find the landmarks among them
-    at = nearest(ctx.m1.V[ctx.s1], ctx.m1.V[landmarks1])[1] if ctx.large else landmarks1
-
-    def pinned_operators(m, basis, landmarks):
-        D = m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
-        return operators_of_descriptors(m.V, m.F, basis, D, k=kd)
-
-    ops1 = pinned_operators(ctx.m1, ctx.b1, landmarks1)
-    out = []
-    for source in sources:
-        landmarks2 = source.refined_map[at]
-        C = descriptor_functional_map(ops1, pinned_operators(ctx.m2, ctx.b2, landmarks2),
-                                      orientation=options.prefer)
-        init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
-        out.append(_refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True,
-                                k_start=kd))
-    timings["orientation_repair"] = time.perf_counter() - t
-    return out
+    kd = min(options.descriptor_k, ctx.lb_k)
+    m1, m2 = ctx.m1, ctx.m2
+    ops1 = m1.cached(("pinned_operators", ends1.tobytes(), kd, ctx.lb_k), lambda: operators_of_descriptors(
+        m1.V, m1.F, ctx.b1, _distance_functions(m1, ends1), k=kd))
+    ops2 = operators_of_descriptors(m2.V, m2.F, ctx.b2, functions2, k=kd)
+    C = descriptor_functional_map(ops1, ops2, orientation=options.prefer)
+    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
+    return _refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True, k_start=kd)
 
 
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
@@ -582,12 +609,17 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
     return completed
 
 
-def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images) -> list[float]:
+def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images,
+                        within: np.ndarray | None = None) -> list[float]:
     """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
     distances divided by their median, so uniform scale does not count). Each of ``images``
     gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Graph Dijkstra
-    runs once from ``rows1`` (cached on mesh 1) and once from the distinct images of all maps:
+    runs once from ``rows1`` (cached on mesh 1) and once from each distinct image:
     O((s + u) n log n) for s rows and u distinct images.
+
+    ``within``: vertices of mesh 2 that contain every image (the pipeline's refinement
+    samples). Distances among them are then cached on mesh 2, so later calls (screening,
+    refinement, repair, the symmetry self-run) run Dijkstra only from images not seen before.
     """
     rows1 = np.asarray(rows1, dtype=np.int64)
 
@@ -601,15 +633,52 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
     if not targets:
         return []
     sources, where = np.unique(np.concatenate(targets), return_inverse=True)
-    solver = m2.solver("graph")  # blocks of sources: memory O(block n), not O(u n)
-    D2_all = np.vstack([solver.distances(sources[b:b + 64])[:, sources]
-                        for b in range(0, len(sources), 64)])
+    if within is None:
+        D2_all = _graph_distances_among(m2, sources)
+    else:
+        D2_all = m2.cached(("distances_within", np.asarray(within).tobytes()),
+                           lambda: _DistancesWithin(m2, within)).among(sources)
     out = []
     for i in range(len(targets)):
         pos = where[i * len(rows1):(i + 1) * len(rows1)]
         D2 = D2_all[np.ix_(pos, pos)]
         out.append(float(np.mean(np.abs(D1 - D2 / max(float(np.median(D2)), 1e-300)))))
     return out
+
+
+def _graph_distances_among(m: PreparedMesh, sources: np.ndarray,
+                           columns: np.ndarray | None = None) -> np.ndarray:
+    """Graph geodesic distances from ``sources`` to ``columns`` (default: the sources), by
+    Dijkstra in blocks of 64 sources: memory O(64 n), not O(s n)."""
+    columns = sources if columns is None else columns
+    solver = m.solver("graph")
+    if len(sources) == 0:
+        return np.zeros((0, len(columns)))
+    return np.vstack([solver.distances(sources[b:b + 64])[:, columns] for b in range(0, len(sources), 64)])
+
+
+class _DistancesWithin:
+    """Graph distances among a fixed vertex set of one mesh, filled one Dijkstra source at a
+    time as asked for (memory O(w²) for w vertices)."""
+
+    def __init__(self, m: PreparedMesh, within: np.ndarray):
+        self.m = m
+        self.within = np.asarray(within, dtype=np.int64)
+        self.position = np.full(m.n, -1, dtype=np.int64)
+        self.position[self.within] = np.arange(len(self.within))
+        self.D = np.empty((len(self.within), len(self.within)))
+        self.known = np.zeros(len(self.within), dtype=bool)
+
+    def among(self, vertices: np.ndarray) -> np.ndarray:
+        """(u, u) distances among distinct ``vertices`` (computed afresh if any lies outside the set)."""
+        pos = self.position[vertices]
+        if np.any(pos < 0):
+            return _graph_distances_among(self.m, vertices)
+        todo = pos[~self.known[pos]]
+        if len(todo):
+            self.D[todo] = _graph_distances_among(self.m, self.within[todo], self.within)
+            self.known[todo] = True
+        return self.D[np.ix_(pos, pos)]
 
 
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
@@ -624,8 +693,8 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     n = options.distortion_samples
     rows = ctx.s1[:n] if ctx.large else ctx.c1[:n]
     at = slice(0, len(rows)) if ctx.large else rows
-    for c, d in zip(todo, geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.refined_map[at] for c in todo]),
-                    strict=True):
+    images = [c.refined_map[at] for c in todo]
+    for c, d in zip(todo, geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2), strict=True):
         c.distortion = d
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 

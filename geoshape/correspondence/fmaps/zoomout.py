@@ -138,8 +138,12 @@ def functional_map_energy(C: np.ndarray) -> float:
     return float(np.linalg.norm(C.T @ C - np.eye(C.shape[1])) / k)
 
 
-#: above this many target vertices the full-resolution map searches only near the coarse image
-BRUTE_FORCE_MAX = 8000
+#: above this many target vertices the full-resolution map searches only near the coarse image.
+#: The image moves little once the map is refined, and 64 spatial candidates hold it: on the
+#: 5k-vertex dev sets (tosca_r5k, both remeshed sets, the non-isometric family; all pairs) the
+#: restricted search moved no set's mean error by more than 1.6 % (three of four by under
+#: 0.5 %) and saved about 0.25 s per pair against brute force (then the limit was 8000).
+BRUTE_FORCE_MAX = 1000
 
 
 def full_resolution_map(basis1: LaplacianBasis, basis2: LaplacianBasis, C_21: np.ndarray,
