@@ -535,12 +535,22 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     t = time.perf_counter()
     ends1, at = repair_landmarks(ctx, options)
     ends2 = source.refined_map[at]
-    out = [_pinned_candidate(ctx, ends1, _distance_functions(ctx.m2, ends2), options)]
+    from geoshape.correspondence.fmaps.descriptor_fmap import (
+        descriptor_functional_map,
+        operators_of_descriptors,
+    )
+    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
+
+    ops1, ops2 = (operators_of_descriptors(m.V, m.F, basis, _distance_functions(m, ends), k=kd)
+                  for m, basis, ends in ((ctx.m1, ctx.b1, ends1), (ctx.m2, ctx.b2, ends2)))
+    C = descriptor_functional_map(ops1, ops2, orientation=options.prefer)
+    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
+    out = [_refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True, k_start=kd)]
     timings["orientation_repair"] = time.perf_counter() - t
     return out
 
 
-def repair_landmarks(ctx: PairContext, options: GeoshapeOptions) -> tuple[np.ndarray, np.ndarray | slice]:
+def repair_landmarks(ctx: PairContext, options: GeoshapeOptions) -> tuple[np.ndarray, np.ndarray]:
     """``(landmarks1, at)``: the first ``repair_landmarks`` screening samples of mesh 1 (the
     ends of a body) and where to read their images in a refined map (large meshes: among the
     refinement samples, with which the maps are aligned)."""
@@ -554,29 +564,6 @@ def _distance_functions(m: PreparedMesh, landmarks: np.ndarray) -> np.ndarray:
     from geoshape.geometry.mesh import face_areas
 
     return m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
-
-
-def _pinned_candidate(ctx: PairContext, ends1: np.ndarray, functions2: np.ndarray,
-                      options: GeoshapeOptions) -> Candidate:
-    """A ``"repaired"`` refined candidate from the functional map whose descriptors are the distance
-    functions from ``ends1`` on mesh 1 and ``functions2`` (n2, L) on mesh 2 (column j: from
-    the image of ``ends1[j]``), with the multiplication and orientation terms of
-    :func:`descriptor_functional_map`; refined from kd = ``descriptor_k``. Mesh 1's operators
-    are cached per landmark set. O(L (n log n + n kd²)) + one kd² solve + one refinement."""
-    from geoshape.correspondence.fmaps.descriptor_fmap import (
-        descriptor_functional_map,
-        operators_of_descriptors,
-    )
-    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
-
-    kd = min(options.descriptor_k, ctx.lb_k)
-    m1, m2 = ctx.m1, ctx.m2
-    ops1 = m1.cached(("pinned_operators", ends1.tobytes(), kd, ctx.lb_k), lambda: operators_of_descriptors(
-        m1.V, m1.F, ctx.b1, _distance_functions(m1, ends1), k=kd))
-    ops2 = operators_of_descriptors(m2.V, m2.F, ctx.b2, functions2, k=kd)
-    C = descriptor_functional_map(ops1, ops2, orientation=options.prefer)
-    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
-    return _refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True, k_start=kd)
 
 
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
