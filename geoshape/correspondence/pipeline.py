@@ -393,8 +393,7 @@ def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings
                                  k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
                                  return_energy=True, samples_only=large, final_on_samples=not large)
         candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy))
-    rows = c1[:options.distortion_samples]
-    at = slice(0, len(rows)) if large else rows
+    rows, at = distortion_rows(ctx, c1, options.distortion_samples)
     distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates],
                                       within=ctx.s2)
     for c, d in zip(candidates, distortions, strict=True):
@@ -668,6 +667,15 @@ class _DistancesWithin:
         return self.D[np.ix_(pos, pos)]
 
 
+def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray | slice]:
+    """``(rows, at)``: the first ``n`` of ``samples`` (vertices of mesh 1), on which distortion
+    is measured, and where a map holds their images: positions ``0 … n−1`` of a map aligned
+    with ``samples`` (large meshes, where maps live on samples), else the vertices themselves
+    of a per-vertex map."""
+    rows = samples[:n]
+    return rows, (slice(0, len(rows)) if ctx.large else rows)
+
+
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
     """Fill ``distortion`` of every refined candidate that lacks it: :func:`geodesic_distortion`
@@ -677,9 +685,7 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     if not todo:
         return
     t = time.perf_counter()
-    n = options.distortion_samples
-    rows = ctx.s1[:n] if ctx.large else ctx.c1[:n]
-    at = slice(0, len(rows)) if ctx.large else rows
+    rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
     images = [c.refined_map[at] for c in todo]
     for c, d in zip(todo, geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2), strict=True):
         c.distortion = d
