@@ -186,7 +186,7 @@ def run(args) -> int:
 
     from geoshape._options import check_choice
     from geoshape.bench.rerank import _folder
-    from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.bench.results import markdown_table, update_results_section, workers_note
     from geoshape.contour.methods import CONTOUR_METHODS
     from geoshape.io.datasets import read_labels
     from geoshape.metrics.retrieval import retrieval_metrics
@@ -275,7 +275,7 @@ def run(args) -> int:
         "## 2D mirror-aware matching (default method)\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --settings "
         f"{','.join(settings)}` ({time.strftime('%Y-%m-%d')}, 100 contour points, processes, "
-        f"{workers} workers, {platform.machine()}; shared with other jobs, 1-min load average "
+        f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds). "
         "`generated` is the seeded silhouette generator (6 classes × 12); `SET-KIND` is "
         "`geoshape gen perturb2d SET --kind KIND --seed 0` "
@@ -303,6 +303,7 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     import platform
     import time
 
+    from geoshape.bench.results import workers_note
     from geoshape.contour.methods import CONTOUR_METHODS
 
     def spec(m):
@@ -320,7 +321,7 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         "## 2D default method: cross-validated choice\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "
         f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
-        f"{workers} workers, {platform.machine()}; shared with other jobs, 1-min load average "
+        f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
         "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "

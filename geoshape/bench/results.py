@@ -54,3 +54,12 @@ def markdown_table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(fmt(x) for x in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+def workers_note(n: int) -> str:
+    """``"1 worker"``, ``"2 workers"``: how many processes a run used, for section headers.
+
+    >>> workers_note(1), workers_note(2)
+    ('1 worker', '2 workers')
+    """
+    return f"{n} worker" + ("" if n == 1 else "s")

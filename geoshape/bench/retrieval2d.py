@@ -66,7 +66,7 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
     import platform
     import time
 
-    from geoshape.bench.results import markdown_table
+    from geoshape.bench.results import markdown_table, workers_note
 
     header = ["method", "what", "top-1..10 counts", "top-10 total", "bull's-eye %", "mAP",
               "descriptors s", "all-pairs s"]
@@ -77,6 +77,6 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
     return (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
             f"Command: `geoshape bench {dataset} --methods {','.join(methods)}`{done} "
             f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
-            f"{workers} workers, {platform.machine()}; 'all-pairs s' is the wall time of "
+            f"{workers_note(workers)}, {platform.machine()}; 'all-pairs s' is the wall time of "
             f"descriptors + all-pairs matrix, measured on a machine shared with other jobs, "
             f"so an upper bound). Primary score: {primary}.\n\n{table}\n")

@@ -338,7 +338,7 @@ def _command(args) -> str:
 
 def _section(state, args, stamp, workers, machine) -> str:
     from geoshape.bench.experiments._common import machine_note
-    from geoshape.bench.results import markdown_table
+    from geoshape.bench.results import markdown_table, workers_note
 
     header = ["set", "descriptor", "domain", "affinity", "NN", "FT", "ST", "E", "DCG", "mAP",
               "+lcdp NN", "+lcdp FT", "+lcdp ST", "+lcdp E", "+lcdp DCG", "+lcdp mAP",
@@ -350,7 +350,7 @@ def _section(state, args, stamp, workers, machine) -> str:
         f"## 3D retrieval (descriptors on meshes and on spectral embeddings): {args.section}",
         "",
         f"Command: `{_command(args)}` "
-        f"({stamp}, {workers} workers, {machine}). Generated set: `write_collection(classes=CLASSES, "
+        f"({stamp}, {workers_note(workers)}, {machine}). Generated set: `write_collection(classes=CLASSES, "
         f"instances={args.gen_instances}, poses={args.gen_poses}, seed=7, target_vertices=1500, "
         "resolution=80)`; `mixed3d` / `mixed3d_s1`: `geoshape gen mixed3d` with seed 0 / 1"
         f"{f' ({sizes})' if sizes else ''}. Every matrix is the one of `geoshape retrieval3d DIR "
