@@ -74,9 +74,12 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
     workers = args.n_jobs or os.cpu_count()
     stamp = time.strftime("%Y-%m-%d")
     done = "" if len(rows) == len(methods) else f" (rows so far: {len(rows)} of {len(methods)})"
+    jobs = f" --n-jobs {args.n_jobs}" if args.n_jobs else ""
     return (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
-            f"Command: `geoshape bench {dataset} --methods {','.join(methods)}`{done} "
+            f"Command: `geoshape bench {dataset} --methods {','.join(methods)}{jobs}`{done} "
             f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
             f"{workers_note(workers)}, {platform.machine()}; 'all-pairs s' is the wall time of "
             f"descriptors + all-pairs matrix, measured on a machine shared with other jobs, "
-            f"so an upper bound). Primary score: {primary}.\n\n{table}\n")
+            f"so an upper bound; all-pairs search `auto`: coarse-to-fine for the cyclic-DP methods "
+            f"above 600 shapes, see '2D coarse-to-fine all-pairs search'). Primary score: "
+            f"{primary}.\n\n{table}\n")
