@@ -72,6 +72,8 @@ def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
     ("lb_k", 0), ("lb_k", 2.5), ("k", True), ("n_refine", -1), ("seed", -1), ("n_samples", 0),
     ("symmetry_completion", "yes"), ("descriptor_map", 1), ("distortion_samples", 0),
     ("distortion_samples", 1.5), ("descriptor_k", "30"), ("reorder", "random"),
+    ("distinct_spacing", -0.5), ("distinct_spacing", float("nan")), ("distinct_spacing", "1"),
+    ("distinct_spacing", True),
 ])
 def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
     V, F = _octahedron()
@@ -92,13 +94,15 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 23
+    assert len(GeoshapeOptions.names()) == 24
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
                                    descriptor_map=np.bool_(False))
     assert numpy_values.lb_k == 40 and not numpy_values.descriptor_map
     assert GeoshapeOptions(n_refine=0, icp_iterations=0, n_samples=300).n_refine == 0
+    assert GeoshapeOptions(distinct_spacing=0).distinct_spacing == 0
+    assert GeoshapeOptions(distinct_spacing=np.float32(2.0)).distinct_spacing == 2.0
 
 
 def test_every_option_has_a_one_line_docstring():
@@ -156,6 +160,38 @@ def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
     kept = dataclasses.replace(refined(0.025, 0.1, False), orientation_share=0.9)
     assert pipeline.decide([half_mirrored, kept], GeoshapeOptions()) is kept
     assert pipeline.decision_score(kept) == pytest.approx(0.0025 / 0.9)
+
+
+def _grid_context(large: bool):
+    """A 21 × 21 unit grid (mesh 2 = mesh 1), its 441 vertices all screening samples."""
+    from types import SimpleNamespace
+
+    x, y = np.meshgrid(np.arange(21.0), np.arange(21.0))
+    V = np.c_[x.ravel(), y.ravel(), np.zeros(441)]
+    q = (np.arange(20)[:, None] * 21 + np.arange(20)[None, :]).ravel()
+    F = np.vstack([np.c_[q, q + 1, q + 22], np.c_[q, q + 22, q + 21]])
+    samples = np.arange(441)
+    return SimpleNamespace(m2=SimpleNamespace(V=V, F=F), c1=samples, c2=samples, large=large)
+
+
+@pytest.mark.parametrize("large", [False, True])
+def test_refinement_goes_to_distinct_hypotheses(large):
+    """Planted coarse maps on a grid whose sample spacing is 400 / 441 ≈ 0.95: a map, the same
+    map moved by 0.5 (one hypothesis), the same moved by 2 (another), and its mirror image.
+    The 2 refinement slots go to the first map and the mirror; the near-copies wait in order."""
+    ctx = _grid_context(large)
+    base = np.arange(441)
+    i, j = np.divmod(base, 21)
+    near = np.where(base % 2 == 0, base, i * 21 + np.minimum(j + 1, 20))  # half of them moved by 1
+    far = i * 21 + np.clip(j + 2, 0, 20)
+    mirror = i * 21 + (20 - j)
+    ranked = [Candidate(coarse_map=m) for m in (base, near, mirror, far)]
+    picked, rest = pipeline.distinct_hypotheses(ctx, ranked, 2, 1.0)
+    assert picked == [ranked[0], ranked[2]] and rest == [ranked[1], ranked[3]]
+    picked, rest = pipeline.distinct_hypotheses(ctx, ranked, 3, 1.0)
+    assert picked == [ranked[0], ranked[2], ranked[3]] and rest == [ranked[1]]
+    assert pipeline.distinct_hypotheses(ctx, ranked, 2, 0.0) == (ranked[:2], ranked[2:])  # off
+    assert pipeline.distinct_hypotheses(ctx, ranked, 4, 3.0)[0] == [ranked[0], ranked[2]]  # coarser unit
 
 
 def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):

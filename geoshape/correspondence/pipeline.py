@@ -57,6 +57,10 @@ def _int(low: int, *, none: bool = False) -> dict:
     return {"kind": "int", "low": low, "none": none}
 
 
+def _float(low: float) -> dict:
+    return {"kind": "float", "low": low}
+
+
 _BOOL = {"kind": "bool"}
 
 
@@ -76,7 +80,9 @@ class GeoshapeOptions:
     n_keep: int = field(default=8, metadata=_int(1))
     """Cheapest signed orders kept as candidates (every sign vector of the best is added)."""
     n_refine: int = field(default=5, metadata=_int(0))
-    """At most this many screened candidates are refined (0 acts as 1)."""
+    """At most this many screened candidates are refined (0 acts as 1): distinct ones, see below."""
+    distinct_spacing: float = field(default=1.0, metadata=_float(0.0))
+    """Coarse maps closer than this many sample spacings are one hypothesis, refined once (0: off)."""
     icp_iterations: int = field(default=6, metadata=_int(0))
     """TPS non-rigid ICP iterations per candidate in the spectral domain."""
     n_controls: int = field(default=200, metadata=_int(1))
@@ -126,6 +132,11 @@ class GeoshapeOptions:
             if rule["kind"] == "bool":
                 if not isinstance(value, (bool, np.bool_)):
                     raise InvalidOptionError(f"geoshape option {f.name} must be True or False, got {value!r}")
+            elif rule["kind"] == "float":
+                if (not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_))
+                        or not np.isfinite(value) or value < rule["low"]):
+                    raise InvalidOptionError(
+                        f"geoshape option {f.name} must be a number >= {rule['low']:g}, got {value!r}")
             elif rule["kind"] == "int":
                 if value is None and rule["none"]:
                     continue
@@ -445,18 +456,51 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
     return c
 
 
+def distinct_hypotheses(ctx: PairContext, ranked: list[Candidate], n: int,
+                        spacings: float) -> tuple[list[Candidate], list[Candidate]]:
+    """``(picked, rest)``: the first ``n`` of ``ranked`` whose coarse maps each differ from every
+    earlier pick, in ranked order, and the others (in ranked order).
+
+    Two coarse maps are one hypothesis when the images of mesh 1's screening samples lie on
+    average closer than ``spacings`` × the screening-sample spacing of mesh 2
+    (√(area / ``screen_samples``)): coarse maps land on those samples, so maps closer than one
+    spacing differ by at most a neighbouring sample, and refining both spends a refinement
+    on the same map. Sign variants of one eigenvector order often give the same map (the
+    flipped eigenvectors are ones the coarse ZoomOut overrides); without this rule five
+    copies of one mirrored map could take every refinement. Unit-free. O(len(ranked) · n · s)
+    for s screening samples (Euclidean distances between images).
+    """
+    if spacings <= 0:
+        return list(ranked[:n]), list(ranked[n:])
+    from geoshape.geometry.mesh import face_areas
+
+    _, at = distortion_rows(ctx, ctx.c1, len(ctx.c1))
+    limit = spacings * np.sqrt(face_areas(ctx.m2.V, ctx.m2.F).sum() / len(ctx.c2))
+    V2 = ctx.m2.V
+    picked, rest, images = [], [], []
+    for c in ranked:
+        image = V2[c.coarse_map[at]]
+        if len(picked) < n and all(np.linalg.norm(image - other, axis=1).mean() >= limit for other in images):
+            picked.append(c)
+            images.append(image)
+        else:
+            rest.append(c)
+    return picked, rest
+
+
 def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
            timings: dict) -> list[Candidate]:
-    """Stage 4: refine the ``max(n_refine, 1)`` first of ``ranked`` (sorted by
-    :func:`screening_score`, whatever their coarse orientation: coarse orientation is weak); while
-    every refined map has the unwanted orientation, refine the candidate of most wanted
-    coarse orientation next, at most ``max(n_refine, 1)`` more. Fills the refined scores and
-    returns the refined candidates in the order refined; O(n_refine · iter s^2 lb_k).
+    """Stage 4: refine the ``max(n_refine, 1)`` first distinct hypotheses of ``ranked`` (sorted
+    by :func:`screening_score`, whatever their coarse orientation: coarse orientation is weak;
+    :func:`distinct_hypotheses`); while every refined map has the unwanted orientation, refine
+    the candidate of most wanted coarse orientation next, at most ``max(n_refine, 1)`` more.
+    Fills the refined scores and returns the refined candidates in the order refined;
+    O(n_refine · iter s^2 lb_k).
     """
     t = time.perf_counter()
     n = max(options.n_refine, 1)
-    refined = [_refine_into(ctx, c, c.coarse_map, options) for c in ranked[:n]]
-    rest = list(ranked[n:])
+    picked, rest = distinct_hypotheses(ctx, ranked, n, options.distinct_spacing)
+    refined = [_refine_into(ctx, c, c.coarse_map, options) for c in picked]
     sign = 1.0 if options.prefer == "preserving" else -1.0
     for _ in range(n):
         if not rest or not all(r.unwanted for r in refined):
