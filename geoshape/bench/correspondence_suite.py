@@ -244,7 +244,10 @@ def _run_table(args, sets, methods, log) -> int:
             rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
     limit = f" --limit {args.limit}" if args.limit else ""
     only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
-    cmd = (f"geoshape bench correspondence --suite generalization{only}{limit} --methods {','.join(methods)} "
+    # the command as typed: pyFM is the default peer, not a method name
+    given = f" --methods {args.methods}" if getattr(args, "methods", None) else ""
+    peer = "" if getattr(args, "peer", "pyfm") == "pyfm" else f" --peer {args.peer}"
+    cmd = (f"geoshape bench correspondence --suite generalization{only}{limit}{given}{peer} "
            f"--landmarks {args.landmarks}")
     text = (f"### 3D correspondence — generalization suite (issue #14)\n\nCommand: `{cmd}`. "
             f"Sets: {_set_list(sets)}{_spread_note(args.limit)}; "
