@@ -171,7 +171,7 @@ def _grid_context(large: bool):
     q = (np.arange(20)[:, None] * 21 + np.arange(20)[None, :]).ravel()
     F = np.vstack([np.c_[q, q + 1, q + 22], np.c_[q, q + 22, q + 21]])
     samples = np.arange(441)
-    return SimpleNamespace(m2=SimpleNamespace(V=V, F=F), c1=samples, c2=samples, large=large)
+    return SimpleNamespace(m2=mm.PreparedMesh(V, F), c1=samples, c2=samples, large=large)
 
 
 @pytest.mark.parametrize("large", [False, True])

@@ -67,6 +67,7 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
     import time
 
     from geoshape.bench.results import markdown_table, workers_note
+    from geoshape.contour.retrieval import AUTO_COARSE_FACTOR, REFINE_K
 
     header = ["method", "what", "top-1..10 counts", "top-10 total", "bull's-eye %", "mAP",
               "descriptors s", "all-pairs s"]
@@ -81,5 +82,5 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
             f"{workers_note(workers)}, {platform.machine()}; 'all-pairs s' is the wall time of "
             f"descriptors + all-pairs matrix, measured on a machine shared with other jobs, "
             f"so an upper bound; all-pairs search `auto`: coarse-to-fine for the cyclic-DP methods "
-            f"above 600 shapes, see '2D coarse-to-fine all-pairs search'). Primary score: "
-            f"{primary}.\n\n{table}\n")
+            f"above {AUTO_COARSE_FACTOR * REFINE_K} shapes, see '2D coarse-to-fine all-pairs search'). "
+            f"Primary score: {primary}.\n\n{table}\n")

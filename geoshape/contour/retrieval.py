@@ -57,6 +57,8 @@ SEARCH_MODES = ("auto", "exact", "coarse_to_fine")
 COARSE_STEP = 2
 #: Shapes per query matched exactly after the first pass (chosen by measured recall).
 REFINE_K = 150
+#: ``search="auto"`` goes coarse-to-fine above this many × ``refine_k`` shapes.
+AUTO_COARSE_FACTOR = 4
 
 
 def _signature_task(P, spec):
@@ -166,7 +168,7 @@ def shape_distance_matrix(contours, method: str = DEFAULT_METHOD, *, backend: st
     if n == 0:
         return np.zeros((0, 0))
     if search == "auto":
-        search = "coarse_to_fine" if fast and n > 4 * refine_k else "exact"
+        search = "coarse_to_fine" if fast and n > AUTO_COARSE_FACTOR * refine_k else "exact"
     if search == "exact" or refine_k >= n - 1:  # every pair would be refined anyway
         return _exact_matrix(signatures, spec, backend, n_jobs, progress)
     return _coarse_to_fine_matrix(signatures, spec, int(refine_k), backend, n_jobs, progress)

@@ -116,6 +116,13 @@ class PreparedMesh:
     def n(self) -> int:
         return len(self.V)
 
+    @property
+    def area(self) -> float:
+        """Total surface area (sum of face areas), computed once."""
+        from geoshape.geometry.mesh import face_areas
+
+        return self.cached(("area",), lambda: float(face_areas(self.V, self.F).sum()))
+
     def cached(self, key, compute):
         if key not in self._cache:
             self._cache[key] = compute()

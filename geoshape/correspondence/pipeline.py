@@ -472,10 +472,8 @@ def distinct_hypotheses(ctx: PairContext, ranked: list[Candidate], n: int,
     """
     if spacings <= 0:
         return list(ranked[:n]), list(ranked[n:])
-    from geoshape.geometry.mesh import face_areas
-
     _, at = distortion_rows(ctx, ctx.c1, len(ctx.c1))
-    limit = spacings * np.sqrt(face_areas(ctx.m2.V, ctx.m2.F).sum() / len(ctx.c2))
+    limit = spacings * np.sqrt(ctx.m2.area / len(ctx.c2))
     V2 = ctx.m2.V
     picked, rest, images = [], [], []
     for c in ranked:
@@ -604,9 +602,7 @@ def repair_landmarks(ctx: PairContext, options: GeoshapeOptions) -> tuple[np.nda
 
 def _distance_functions(m: PreparedMesh, landmarks: np.ndarray) -> np.ndarray:
     """(n, L) graph geodesic distance from each landmark, ÷ √area (unit-free)."""
-    from geoshape.geometry.mesh import face_areas
-
-    return m.solver("graph").distances(landmarks).T / np.sqrt(face_areas(m.V, m.F).sum())
+    return m.solver("graph").distances(landmarks).T / np.sqrt(m.area)
 
 
 def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
