@@ -66,6 +66,19 @@ def test_sensitivity_variants_cover_the_required_defaults():
     assert ("lb_k 60 → 30 (×0.5)", {"lb_k": 30}) in variants
 
 
+def test_sensitivity_fields_are_checked_and_kept_in_table_order():
+    from geoshape.errors import InvalidOptionError
+
+    assert suite.sensitivity_fields(None) == suite.SENSITIVITY_FIELDS
+    assert suite.sensitivity_fields("final_k, screen_k") == ("screen_k", "final_k")
+    variants = suite.sensitivity_variants(fields=("screen_k",))
+    assert [o for _, o in variants] == [{"screen_k": 8}, {"screen_k": 32}]
+    with pytest.raises(InvalidOptionError, match="field must be one of .*screen_k.*got 'screenk'"):
+        suite.sensitivity_fields("screenk")
+    with pytest.raises(InvalidOptionError, match="names no option"):
+        suite.sensitivity_fields(",")
+
+
 def test_sets_are_selected_by_name_in_suite_order():
     from geoshape.errors import InvalidOptionError
 
@@ -110,13 +123,16 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
                         params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
                                 "resolution": 48})
     monkeypatch.setattr(suite, "DEV_SETS", (spec,))
-    monkeypatch.setattr(suite, "sensitivity_variants", lambda: [("n_refine 5 → 2 (×0.5)", {"n_refine": 2})])
+    monkeypatch.setattr(suite, "sensitivity_variants",
+                        lambda fields: [("n_refine 5 → 2 (×0.5)", {"n_refine": 2})] * ("n_refine" in fields))
     monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
     args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
-                              seed=0, sensitivity=True, no_results=False, section=None)
+                              seed=0, sensitivity=True, no_results=False, section=None, fields="n_refine")
     assert suite.run_suite(args) == 0
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.SENSITIVITY_SECTION} -->" in text
     assert f"<!-- BEGIN {suite.SECTION} -->" not in text
     rows = [line for line in text.splitlines() if line.startswith(("| default", "| n_refine"))]
-    assert len(rows) == 2 and all(float(r.split("|")[2]) >= 0 for r in rows)
+    assert len(rows) == 2 and all(float(r.split("|")[2].split("(")[0]) >= 0 for r in rows)
+    assert all(r.split("|")[2].strip().endswith(")") for r in rows)  # failures in brackets
+    assert "--fields n_refine" in text

@@ -57,6 +57,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensitivity", action="store_true",
                    help="with --suite: instead of the suite table, the mean error of each numeric default of "
                    "the geoshape method ×0.5 and ×2 (its own RESULTS section; long: use --limit)")
+    p.add_argument("--fields", default=None,
+                   help="with --sensitivity: comma-separated geoshape options to vary (default: every "
+                   "numeric default of the sensitivity table)")
 
 
 def run_pyfm(V1, F1, V2, F2) -> np.ndarray:

@@ -166,13 +166,31 @@ def suite_table(rows: list[tuple[str, str, dict]]) -> str:
     return markdown_table(header, body)
 
 
-def sensitivity_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, dict]]:
-    """(label, geoshape options) for every field of ``SENSITIVITY_FIELDS`` × every factor."""
+def sensitivity_fields(names: str | None) -> tuple[str, ...]:
+    """The options named in the comma-separated ``names`` (all of ``SENSITIVITY_FIELDS`` when None),
+    in table order; a name outside the table raises :class:`~geoshape.errors.InvalidOptionError`."""
+    if not names:
+        return SENSITIVITY_FIELDS
+    from geoshape._options import check_choice
+
+    wanted = [n.strip() for n in names.split(",") if n.strip()]
+    if not wanted:
+        from geoshape.errors import InvalidOptionError
+
+        valid = ", ".join(SENSITIVITY_FIELDS)
+        raise InvalidOptionError(f"--fields {names!r} names no option; valid: {valid}")
+    for name in wanted:
+        check_choice("sensitivity field", name, SENSITIVITY_FIELDS)
+    return tuple(n for n in SENSITIVITY_FIELDS if n in wanted)
+
+
+def sensitivity_variants(factors=SENSITIVITY_FACTORS, fields=SENSITIVITY_FIELDS) -> list[tuple[str, dict]]:
+    """(label, geoshape options) for every one of ``fields`` × every factor."""
     from geoshape.correspondence.pipeline import GeoshapeOptions
 
     defaults = GeoshapeOptions()
     out = []
-    for name in SENSITIVITY_FIELDS:
+    for name in fields:
         value = getattr(defaults, name)
         for f in factors:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -208,9 +226,11 @@ def run_suite(args: argparse.Namespace) -> int:
 
     dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
     log = lambda text: print(text, flush=True)  # noqa: E731
-    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in selected_sets(getattr(args, "sets", None))]
+    specs = selected_sets(getattr(args, "sets", None))
+    fields = sensitivity_fields(getattr(args, "fields", None))  # checked before any generation
+    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in specs]
     if args.sensitivity:
-        return _run_sensitivity(args, sets, log)
+        return _run_sensitivity(args, sets, log, fields)
     methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
     return _run_table(args, sets, methods, log)
 
@@ -264,31 +284,36 @@ def _run_table(args, sets, methods, log) -> int:
     return 0
 
 
-def _run_sensitivity(args, sets, log) -> int:
-    """Mean direct error per set of the geoshape default and of each :func:`sensitivity_variants`
-    on the same ``--limit`` pairs per set; O(variants × sets × limit) pipeline runs."""
+def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
+    """Mean direct error (and failures) per set of the geoshape default and of each
+    :func:`sensitivity_variants` of ``fields`` on the same ``--limit`` pairs per set;
+    O(variants × sets × limit) pipeline runs."""
     from geoshape.bench.correspondence import evaluate_pairs
     from geoshape.bench.experiments._common import machine_note
     from geoshape.bench.results import markdown_table
 
     header = ["geoshape option"] + [s.name for s, _ in sets]
     only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+    if getattr(args, "fields", None):
+        only += f" --fields {','.join(fields)}"
     body = []
-    for label, options in [("default", {})] + sensitivity_variants():
+    for label, options in [("default", {})] + sensitivity_variants(fields=fields):
         log(f"== sensitivity: {label}")
         row = [label]
         for spec, folder in sets:
             results, has_sym = evaluate_pairs(folder, spec.pairs_file, ["geoshape"], limit=args.limit,
                                               landmarks=args.landmarks, seed=args.seed, options=options,
                                               spread=True, log=log)
-            row.append(_fmt(set_metrics(results, has_sym)["mean"]))
+            m = set_metrics(results, has_sym)
+            row.append(f"{_fmt(m['mean'])} ({m['failures']})")
         body.append(row)
     limit = f" --limit {args.limit}" if args.limit else ""
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
-            f"error per set (as in the generalization suite) of the geoshape method with one default "
-            f"changed ×0.5 and ×2 (counts rounded, at least 1) ({machine_note()}).\n\n"
+            f"error per set (as in the generalization suite; in brackets the failures, pairs above "
+            f"{FAILURE_ERROR}) of the geoshape method with one default changed ×0.5 and ×2 (counts "
+            f"rounded, at least 1) ({machine_note()}).\n\n"
             + markdown_table(header, body) + "\n")
     _write(args, SENSITIVITY_SECTION, text)
     return 0
