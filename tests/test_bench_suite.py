@@ -136,3 +136,13 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
     assert len(rows) == 2 and all(float(r.split("|")[2].split("(")[0]) >= 0 for r in rows)
     assert all(r.split("|")[2].strip().endswith(")") for r in rows)  # failures in brackets
     assert "--fields n_refine" in text
+
+
+def test_a_misspelled_sensitivity_field_stops_the_command_before_any_generation(tmp_path, capsys):
+    from geoshape.__main__ import main
+
+    code = main(["bench", "correspondence", "--suite", "generalization", "--sensitivity",
+                 "--fields", "screen_k,finalk", "--dev-dir", str(tmp_path), "--no-results"])
+    assert code == 2
+    assert "finalk" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []  # nothing generated
