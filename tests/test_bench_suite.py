@@ -146,3 +146,33 @@ def test_a_misspelled_sensitivity_field_stops_the_command_before_any_generation(
     assert code == 2
     assert "finalk" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []  # nothing generated
+
+
+def test_candidate_report_lists_every_refined_candidate_and_marks_the_decision(tmp_path):
+    from geoshape_datasets_gen.nonisometric import write_nonisometric_set
+
+    from geoshape.bench.correspondence import candidate_report
+
+    write_nonisometric_set(tmp_path / "tiny", n_pairs=2, seed=0, target_vertices=600, templates=1,
+                           resolution=48)
+    lines = []
+    rows = candidate_report(tmp_path / "tiny", "pairs.csv", ["p01_"], landmarks=50, log=lines.append)
+    assert rows and {r["pair"] for r in rows} == {rows[0]["pair"]} and rows[0]["pair"].startswith("p01_")
+    assert sum(r["chosen"] for r in rows) == 1
+    chosen = next(r for r in rows if r["chosen"])
+    pool = [r for r in rows if r["wanted"]] or rows
+    assert chosen["decision_score"] == min(r["decision_score"] for r in pool)
+    assert all(0 <= r["error"] < 2 for r in rows)
+    assert lines[0].startswith("== p01_") and len(lines) == 2 + len(rows)
+    assert candidate_report(tmp_path / "tiny", "pairs.csv", ["no such pair"], landmarks=50) == []
+
+
+def test_candidates_naming_no_pair_exits_2(tmp_path, capsys):
+    from geoshape_datasets_gen.nonisometric import write_nonisometric_set
+
+    from geoshape.__main__ import main
+
+    write_nonisometric_set(tmp_path / "tiny", n_pairs=1, seed=0, target_vertices=600, templates=1,
+                           resolution=48)
+    assert main(["bench", "correspondence", str(tmp_path / "tiny"), "--candidates", "nothing-like-this"]) == 2
+    assert "no pair name contains" in capsys.readouterr().err

@@ -57,6 +57,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensitivity", action="store_true",
                    help="with --suite: instead of the suite table, the mean error of each numeric default of "
                    "the geoshape method ×0.5 and ×2 (its own RESULTS section; long: use --limit)")
+    p.add_argument("--candidates", default=None, metavar="NAMES",
+                   help="instead of a table: for the pairs whose 'source -> target' name contains one of "
+                   "these comma-separated strings, every refined candidate of the geoshape method with its "
+                   "decision scores and its errors (print only)")
     p.add_argument("--fields", default=None,
                    help="with --sensitivity: comma-separated geoshape options to vary (default: every "
                    "numeric default of the sensitivity table)")
@@ -197,7 +201,59 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     return results, has_sym
 
 
+def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: int = 1000, seed: int = 0,
+                     options: dict | None = None, log=print) -> list[dict]:
+    """Why the geoshape method chose what it chose: for every pair of ``folder/pairs_file`` whose
+    ``"source -> target"`` name contains one of ``names``, one row per refined candidate
+    (``Correspondence.details["candidates"]``) with its decision factors and the mean direct and
+    symmetry-aware errors of its refined map at the evaluation landmarks (before the
+    full-resolution stage; on large meshes, where refined maps live on samples, each landmark
+    reads the image of its nearest refinement sample). Logged as a table per pair; returned as
+    dicts. O(pipeline + candidates × landmarks) per pair."""
+    from geoshape.correspondence.mesh_matching import correspond
+    from geoshape.correspondence.pipeline import decision_score
+    from geoshape.geometry.knn import nearest
+    from geoshape.io.datasets import read_pairs, scape_feature_points
+    from geoshape.io.mesh_io import load_mesh
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
+
+    folder = Path(folder)
+    feature_points = scape_feature_points(folder)
+    rows = []
+    for pi, pair in enumerate(read_pairs(folder, pairs_file)):
+        name = f"{pair.source.name} -> {pair.target.name}"
+        if not any(n in name for n in names):
+            continue
+        V1, F1 = load_mesh(pair.source)
+        V2, F2 = load_mesh(pair.target)
+        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), landmarks, seed + pi, feature_points)
+        ev = GeodesicErrorEvaluator(V2, F2)
+        result = correspond(V1, F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
+        final = geodesic_errors(V2, F2, result.p2p_12[src], tgt, sym, evaluator=ev)
+        on_rows = result.details["candidate_rows"]
+        at = src if on_rows is None else nearest(V1[on_rows], V1[src])[1]
+        log(f"== {name}: final map {final['mean']:.4f} direct, "
+            f"{final.get('mean_sym_aware', float('nan')):.4f} symmetry-aware")
+        log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
+            "wanted | decision score")
+        for i, c in enumerate(result.details["candidates"]):
+            e = geodesic_errors(V2, F2, c.refined_map[at], tgt, sym, evaluator=ev)
+            row = {"pair": name, "source": c.source, "error": float(e["mean"]),
+                   "error_sym": float(e.get("mean_sym_aware", float("nan"))), "distortion": c.distortion,
+                   "energy": c.refined_energy, "orientation": c.refined_orientation,
+                   "wanted": not c.unwanted, "decision_score": decision_score(c),
+                   "chosen": i == result.details["chosen_index"]}
+            rows.append(row)
+            mark = "*" if row["chosen"] else " "
+            log(f"  {mark} | {c.source} | {row['error']:.4f} | {row['error_sym']:.4f} | {c.distortion:.4f} | "
+                f"{c.refined_energy:.4f} | {c.refined_orientation:+.3f} | "
+                f"{'yes' if row['wanted'] else 'no'} | {row['decision_score']:.6f}")
+    return rows
+
+
 def _run(args: argparse.Namespace) -> int:
+    if getattr(args, "candidates", None):
+        return _run_candidates(args)
     if args.suite:
         from geoshape.bench.correspondence_suite import run_suite
 
@@ -267,4 +323,29 @@ def _run(args: argparse.Namespace) -> int:
     if not args.no_results:
         section = args.section or f"correspondence-{folder.name}-{Path(args.pairs).stem}"
         update_results_section(section, text)
+    return 0
+
+
+def _run_candidates(args: argparse.Namespace) -> int:
+    """``--candidates``: :func:`candidate_report` on DIR, or with ``--suite`` on every selected dev set."""
+    names = [n.strip() for n in args.candidates.split(",") if n.strip()]
+    log = lambda text: print(text, flush=True)  # noqa: E731
+    if args.suite:
+        from geoshape.bench.correspondence_suite import default_dev_dir, prepare_set, selected_sets
+
+        dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
+        targets = [(prepare_set(spec, dev_dir, log), spec.pairs_file)
+                   for spec in selected_sets(getattr(args, "sets", None))]
+    elif args.dir is None:
+        raise SystemExit("geoshape bench correspondence: DIR is required (or --suite generalization)")
+    else:
+        targets = [(Path(args.dir), args.pairs)]
+    found = 0
+    for folder, pairs_file in targets:
+        found += len(candidate_report(folder, pairs_file, names, landmarks=args.landmarks, seed=args.seed,
+                                      log=log))
+    if not found:
+        from geoshape.errors import InvalidOptionError
+
+        raise InvalidOptionError(f"--candidates {args.candidates!r}: no pair name contains any of {names}")
     return 0

@@ -810,8 +810,10 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     """The ``geoshape`` method: every stage in turn (module docstring); a
     :class:`~geoshape.correspondence.mesh_matching.Correspondence` whose ``cost`` is the chosen
     map's refined energy and whose ``details`` hold ``large_mesh_mode``, ``symmetry_completed``,
-    ``source``, the chosen map's ``distortion`` and ``decision_score``, and the final map's
-    ``orientation``.
+    ``source``, the chosen map's ``distortion`` and ``decision_score``, the final map's
+    ``orientation``, and for diagnosis ``candidates`` (every refined :class:`Candidate`; the
+    chosen one at ``chosen_index``) with ``candidate_rows`` (the mesh-1 vertices their maps are aligned
+    with on large meshes, else None: maps hold every vertex).
     """
     from geoshape.correspondence.mesh_matching import Correspondence
 
@@ -832,7 +834,9 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     chosen = decide(refined, options)
     details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed),
                "source": chosen.source, "distortion": chosen.distortion,
-               "decision_score": decision_score(chosen)}
+               "decision_score": decision_score(chosen), "candidates": refined,
+               "chosen_index": next(i for i, c in enumerate(refined) if c is chosen),
+               "candidate_rows": ctx.s1 if ctx.large else None}
     p2p = full_resolution(ctx, chosen, options, timings)
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,
