@@ -3,6 +3,7 @@
 import argparse
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -134,7 +135,10 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
     assert f"<!-- BEGIN {suite.SECTION} -->" not in text
     rows = [line for line in text.splitlines() if line.startswith(("| default", "| n_refine"))]
     assert len(rows) == 2 and all(float(r.split("|")[2].split("(")[0]) >= 0 for r in rows)
-    assert all(r.split("|")[2].strip().endswith(")") for r in rows)  # failures in brackets
+    cells = [r.split("|")[2].strip() for r in rows]
+    # mean to 4 significant digits, failures in brackets
+    assert all(re.fullmatch(r"\S+ \(\d+\)", c) for c in cells)
+    assert all(f"{float(c.split()[0]):.4g}" == c.split()[0] for c in cells)
     assert "--fields n_refine" in text
 
 

@@ -305,7 +305,9 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
                                               landmarks=args.landmarks, seed=args.seed, options=options,
                                               spread=True, log=log)
             m = set_metrics(results, has_sym)
-            row.append(f"{_fmt(m['mean'])} ({m['failures']})")
+            mean = _fmt(m["mean"])
+            mean = f"{mean:.4g}" if isinstance(mean, float) else mean
+            row.append(f"{mean} ({m['failures']})")
         body.append(row)
     limit = f" --limit {args.limit}" if args.limit else ""
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
