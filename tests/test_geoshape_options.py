@@ -194,6 +194,27 @@ def test_refinement_goes_to_distinct_hypotheses(large):
     assert pipeline.distinct_hypotheses(ctx, ranked, 4, 3.0)[0] == [ranked[0], ranked[2]]  # coarser unit
 
 
+def test_the_mirrored_fallback_skips_copies_of_refined_maps(monkeypatch):
+    """Every refined map mirrored: the fallback refines the candidate of most wanted coarse
+    orientation that is not a copy of a map already refined (a near-copy of the refined
+    mirror, with a better coarse orientation score, waits)."""
+    ctx = _grid_context(False)
+    base = np.arange(441)
+    i, j = np.divmod(base, 21)
+    mirror = i * 21 + (20 - j)
+    near_mirror = np.where(base % 2 == 0, mirror, i * 21 + np.maximum(20 - j - 1, 0))
+    far = i * 21 + np.clip(j + 2, 0, 20)
+    monkeypatch.setattr(pipeline, "refine_map", lambda *a, **k: (np.zeros(3, dtype=np.int64), 0.1, -0.8))
+    ranked = [Candidate(coarse_map=m, orientation=o, zoomout_energy=0.1)
+              for m, o in ((mirror, -0.9), (near_mirror, 0.5), (far, 0.2))]
+    refined = pipeline.refine(ctx, ranked, GeoshapeOptions(n_refine=1), {})
+    assert refined == [ranked[0], ranked[2]]  # the copy (coarse orientation 0.5) is skipped
+    # with the rule off, the copy is refined, as before the rule
+    off = pipeline.refine(ctx, [dataclasses.replace(c) for c in ranked],
+                          GeoshapeOptions(n_refine=1, distinct_spacing=0.0), {})
+    assert [c.orientation for c in off] == [-0.9, 0.5]
+
+
 def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
     monkeypatch.setattr(pipeline, "refine_map", lambda *a, **k: (np.zeros(3, dtype=np.int64), 0.1, 0.6))
     for prefer, share, unwanted in (("preserving", 0.8, False), ("reversing", 0.2, True)):

@@ -472,18 +472,26 @@ def distinct_hypotheses(ctx: PairContext, ranked: list[Candidate], n: int,
     """
     if spacings <= 0:
         return list(ranked[:n]), list(ranked[n:])
-    _, at = distortion_rows(ctx, ctx.c1, len(ctx.c1))
-    limit = spacings * np.sqrt(ctx.m2.area / len(ctx.c2))
-    V2 = ctx.m2.V
-    picked, rest, images = [], [], []
+    picked, rest = [], []
     for c in ranked:
-        image = V2[c.coarse_map[at]]
-        if len(picked) < n and all(np.linalg.norm(image - other, axis=1).mean() >= limit for other in images):
+        if len(picked) < n and is_new_hypothesis(ctx, c, picked, spacings):
             picked.append(c)
-            images.append(image)
         else:
             rest.append(c)
     return picked, rest
+
+
+def is_new_hypothesis(ctx: PairContext, c: Candidate, others: list[Candidate], spacings: float) -> bool:
+    """Whether the coarse map of ``c`` differs from that of every one of ``others`` by at least
+    ``spacings`` screening-sample spacings on average (the rule of :func:`distinct_hypotheses`;
+    always True when ``spacings`` <= 0). O(len(others) · s)."""
+    if spacings <= 0:
+        return True
+    _, at = distortion_rows(ctx, ctx.c1, len(ctx.c1))
+    limit = spacings * np.sqrt(ctx.m2.area / len(ctx.c2))
+    V2 = ctx.m2.V
+    image = V2[c.coarse_map[at]]
+    return all(np.linalg.norm(image - V2[o.coarse_map[at]], axis=1).mean() >= limit for o in others)
 
 
 def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
@@ -491,7 +499,8 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     """Stage 4: refine the ``max(n_refine, 1)`` first distinct hypotheses of ``ranked`` (sorted
     by :func:`screening_score`, whatever their coarse orientation: coarse orientation is weak;
     :func:`distinct_hypotheses`); while every refined map has the unwanted orientation, refine
-    the candidate of most wanted coarse orientation next, at most ``max(n_refine, 1)`` more.
+    the candidate of most wanted coarse orientation next, at most ``max(n_refine, 1)`` more,
+    skipping copies of maps already refined (:func:`is_new_hypothesis`).
     Fills the refined scores and returns the refined candidates in the order refined;
     O(n_refine · iter s^2 lb_k).
     """
@@ -501,6 +510,7 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     refined = [_refine_into(ctx, c, c.coarse_map, options) for c in picked]
     sign = 1.0 if options.prefer == "preserving" else -1.0
     for _ in range(n):
+        rest = [c for c in rest if is_new_hypothesis(ctx, c, refined, options.distinct_spacing)]
         if not rest or not all(r.unwanted for r in refined):
             break
         c = max(rest, key=lambda x: (sign * coarse_orientation(ctx, x), -x.zoomout_energy))
