@@ -510,8 +510,10 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     refined = [_refine_into(ctx, c, c.coarse_map, options) for c in picked]
     sign = 1.0 if options.prefer == "preserving" else -1.0
     for _ in range(n):
+        if not all(r.unwanted for r in refined):
+            break
         rest = [c for c in rest if is_new_hypothesis(ctx, c, refined, options.distinct_spacing)]
-        if not rest or not all(r.unwanted for r in refined):
+        if not rest:
             break
         c = max(rest, key=lambda x: (sign * coarse_orientation(ctx, x), -x.zoomout_energy))
         rest.remove(c)
