@@ -144,6 +144,44 @@ def peer_methods(methods: list[str], peer: str) -> list[str]:
     return methods
 
 
+@dataclass
+class LoadedPair:
+    """One row of a pairs file, loaded: meshes, evaluation landmarks, and a geodesic-error evaluator."""
+
+    index: int
+    name: str
+    V1: np.ndarray
+    F1: np.ndarray
+    V2: np.ndarray
+    F2: np.ndarray
+    src: np.ndarray
+    tgt: np.ndarray
+    sym: np.ndarray | None
+    evaluator: object
+
+
+def loaded_pairs(folder: Path, pairs, *, landmarks: int, seed: int, feature_points):
+    """Yield a :class:`LoadedPair` for each of ``pairs`` (rows of ``read_pairs``; a None row is
+    skipped and keeps its position), landmarks drawn with seed ``seed + position``; evaluators kept
+    for the last 4 targets (pairs files repeat targets)."""
+    from geoshape.io.mesh_io import load_mesh
+    from geoshape.metrics.correspondence import GeodesicErrorEvaluator
+
+    evaluators: dict = {}
+    for pi, pair in enumerate(pairs):
+        if pair is None:
+            continue
+        V1, F1 = load_mesh(pair.source)
+        V2, F2 = load_mesh(pair.target)
+        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), landmarks, seed + pi, feature_points)
+        ev = evaluators.get(str(pair.target))
+        if ev is None:  # built only for a target not seen among the last 4
+            ev = evaluators[str(pair.target)] = GeodesicErrorEvaluator(V2, F2)
+            if len(evaluators) > 4:
+                evaluators.pop(next(iter(evaluators)))
+        yield LoadedPair(pi, f"{pair.source.name} -> {pair.target.name}", V1, F1, V2, F2, src, tgt, sym, ev)
+
+
 def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | None = None,
                    landmarks: int = 1000, seed: int = 0, options: dict | None = None, spread: bool = False,
                    log=print) -> tuple[list[PairResult], bool]:
@@ -157,8 +195,7 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     from geoshape.correspondence.mesh_matching import correspond
     from geoshape.errors import GeoshapeError
     from geoshape.io.datasets import read_pairs, scape_feature_points
-    from geoshape.io.mesh_io import load_mesh
-    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
+    from geoshape.metrics.correspondence import geodesic_errors
 
     folder = Path(folder)
     pairs = read_pairs(folder, pairs_file)
@@ -168,16 +205,9 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     pairs = pairs[:limit]
     feature_points = scape_feature_points(folder)
     results: list[PairResult] = []
-    evaluators: dict = {}
-    for pi, pair in enumerate(pairs):
-        V1, F1 = load_mesh(pair.source)
-        V2, F2 = load_mesh(pair.target)
-        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), landmarks, seed + pi, feature_points)
-        ev = evaluators.setdefault(str(pair.target), GeodesicErrorEvaluator(V2, F2))
-        if len(evaluators) > 4:
-            evaluators.pop(next(iter(evaluators)))
-        name = f"{pair.source.name} -> {pair.target.name}"
-        line = [f"[{pi + 1}/{len(pairs)}] {name}:"]
+    for lp in loaded_pairs(folder, pairs, landmarks=landmarks, seed=seed, feature_points=feature_points):
+        V1, F1, V2, F2, name = lp.V1, lp.F1, lp.V2, lp.F2, lp.name
+        line = [f"[{lp.index + 1}/{len(pairs)}] {name}:"]
         for m in methods:
             t = time.perf_counter()
             try:
@@ -191,9 +221,9 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
                 line.append(f"{m} FAILED ({exc})")
                 continue
             seconds = time.perf_counter() - t
-            r = geodesic_errors(V2, F2, p2p[src], tgt, sym, evaluator=ev)
+            r = geodesic_errors(V2, F2, p2p[lp.src], lp.tgt, lp.sym, evaluator=lp.evaluator)
             results.append(PairResult(m, name, r["errors"],
-                                      r["errors_sym_aware"] if sym is not None else r["errors"], seconds))
+                                      r["errors_sym_aware"] if lp.sym is not None else r["errors"], seconds))
             sym_mean = r.get("mean_sym_aware", float("nan"))
             line.append(f"{m} {r['mean']:.3f}/{sym_mean:.3f} {seconds:.1f}s")
         log(" ".join(line))
@@ -214,31 +244,27 @@ def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: in
     from geoshape.correspondence.pipeline import decision_score
     from geoshape.geometry.knn import nearest
     from geoshape.io.datasets import read_pairs, scape_feature_points
-    from geoshape.io.mesh_io import load_mesh
-    from geoshape.metrics.correspondence import GeodesicErrorEvaluator, geodesic_errors
+    from geoshape.metrics.correspondence import geodesic_errors
 
     folder = Path(folder)
-    feature_points = scape_feature_points(folder)
+    # the rows keep their positions in the file, so landmarks are drawn as the suite draws them
+    named = [p if any(n in f"{p.source.name} -> {p.target.name}" for n in names) else None
+             for p in read_pairs(folder, pairs_file)]
     rows = []
-    for pi, pair in enumerate(read_pairs(folder, pairs_file)):
-        name = f"{pair.source.name} -> {pair.target.name}"
-        if not any(n in name for n in names):
-            continue
-        V1, F1 = load_mesh(pair.source)
-        V2, F2 = load_mesh(pair.target)
-        src, tgt, sym = _landmark_sets(pair, len(V1), len(V2), landmarks, seed + pi, feature_points)
-        ev = GeodesicErrorEvaluator(V2, F2)
-        result = correspond(V1, F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
-        final = geodesic_errors(V2, F2, result.p2p_12[src], tgt, sym, evaluator=ev)
+    for lp in loaded_pairs(folder, named, landmarks=landmarks, seed=seed,
+                           feature_points=scape_feature_points(folder)):
+        V1, V2, F2, ev = lp.V1, lp.V2, lp.F2, lp.evaluator
+        result = correspond(V1, lp.F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
+        final = geodesic_errors(V2, F2, result.p2p_12[lp.src], lp.tgt, lp.sym, evaluator=ev)
         on_rows = result.details["candidate_rows"]
-        at = src if on_rows is None else nearest(V1[on_rows], V1[src])[1]
-        log(f"== {name}: final map {final['mean']:.4f} direct, "
+        at = lp.src if on_rows is None else nearest(V1[on_rows], V1[lp.src])[1]
+        log(f"== {lp.name}: final map {final['mean']:.4f} direct, "
             f"{final.get('mean_sym_aware', float('nan')):.4f} symmetry-aware")
         log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
             "wanted | decision score")
         for i, c in enumerate(result.details["candidates"]):
-            e = geodesic_errors(V2, F2, c.refined_map[at], tgt, sym, evaluator=ev)
-            row = {"pair": name, "source": c.source, "error": float(e["mean"]),
+            e = geodesic_errors(V2, F2, c.refined_map[at], lp.tgt, lp.sym, evaluator=ev)
+            row = {"pair": lp.name, "source": c.source, "error": float(e["mean"]),
                    "error_sym": float(e.get("mean_sym_aware", float("nan"))), "distortion": c.distortion,
                    "energy": c.refined_energy, "orientation": c.refined_orientation,
                    "wanted": not c.unwanted, "decision_score": decision_score(c),
@@ -258,14 +284,12 @@ def _run(args: argparse.Namespace) -> int:
         from geoshape.bench.correspondence_suite import run_suite
 
         return run_suite(args)
-    if args.dir is None:
-        raise SystemExit("geoshape bench correspondence: DIR is required (or --suite generalization)")
+    folder = _dataset_dir(args)
     from geoshape.bench.experiments._common import machine_note
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.io.datasets import scape_feature_points
     from geoshape.plot.correspondence import plot_error_curves
 
-    folder = Path(args.dir)
     args.methods = args.methods or DEFAULT_METHODS
     methods = peer_methods([m for m in args.methods.split(",") if m], args.peer)
     results, has_sym = evaluate_pairs(folder, args.pairs, methods, limit=args.limit,
@@ -326,20 +350,23 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _dataset_dir(args: argparse.Namespace) -> Path:
+    """DIR of a run without ``--suite``; exits with a usage message when it is missing."""
+    if args.dir is None:
+        raise SystemExit("geoshape bench correspondence: DIR is required (or --suite generalization)")
+    return Path(args.dir)
+
+
 def _run_candidates(args: argparse.Namespace) -> int:
     """``--candidates``: :func:`candidate_report` on DIR, or with ``--suite`` on every selected dev set."""
     names = [n.strip() for n in args.candidates.split(",") if n.strip()]
     log = lambda text: print(text, flush=True)  # noqa: E731
     if args.suite:
-        from geoshape.bench.correspondence_suite import default_dev_dir, prepare_set, selected_sets
+        from geoshape.bench.correspondence_suite import prepared_sets
 
-        dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
-        targets = [(prepare_set(spec, dev_dir, log), spec.pairs_file)
-                   for spec in selected_sets(getattr(args, "sets", None))]
-    elif args.dir is None:
-        raise SystemExit("geoshape bench correspondence: DIR is required (or --suite generalization)")
+        targets = [(folder, spec.pairs_file) for spec, folder in prepared_sets(args, log)]
     else:
-        targets = [(Path(args.dir), args.pairs)]
+        targets = [(_dataset_dir(args), args.pairs)]
     found = 0
     for folder, pairs_file in targets:
         found += len(candidate_report(folder, pairs_file, names, landmarks=args.landmarks, seed=args.seed,

@@ -166,21 +166,27 @@ def suite_table(rows: list[tuple[str, str, dict]]) -> str:
     return markdown_table(header, body)
 
 
+def _named(flag: str, kind: str, label: str, names: str, valid: list[str]) -> list[str]:
+    """The names of the comma-separated ``names``, each checked against ``valid`` (the error lists
+    them); ``flag``, ``kind`` (what none was named) and ``label`` (what one is) word the
+    messages. Shared by ``--sets`` and ``--fields``."""
+    from geoshape._options import check_choice
+    from geoshape.errors import InvalidOptionError
+
+    wanted = [n.strip() for n in names.split(",") if n.strip()]
+    if not wanted:
+        raise InvalidOptionError(f"{flag} {names!r} names no {kind}; valid: {', '.join(valid)}")
+    for name in wanted:
+        check_choice(label, name, valid)
+    return wanted
+
+
 def sensitivity_fields(names: str | None) -> tuple[str, ...]:
     """The options named in the comma-separated ``names`` (all of ``SENSITIVITY_FIELDS`` when None),
     in table order; a name outside the table raises :class:`~geoshape.errors.InvalidOptionError`."""
     if not names:
         return SENSITIVITY_FIELDS
-    from geoshape._options import check_choice
-
-    wanted = [n.strip() for n in names.split(",") if n.strip()]
-    if not wanted:
-        from geoshape.errors import InvalidOptionError
-
-        valid = ", ".join(SENSITIVITY_FIELDS)
-        raise InvalidOptionError(f"--fields {names!r} names no option; valid: {valid}")
-    for name in wanted:
-        check_choice("sensitivity field", name, SENSITIVITY_FIELDS)
+    wanted = _named("--fields", "option", "sensitivity field", names, list(SENSITIVITY_FIELDS))
     return tuple(n for n in SENSITIVITY_FIELDS if n in wanted)
 
 
@@ -206,17 +212,17 @@ def selected_sets(names: str | None) -> list[DevSet]:
     an unknown name raises :class:`~geoshape.errors.InvalidOptionError` listing the valid ones."""
     if not names:
         return list(DEV_SETS)
-    from geoshape._options import check_choice
-
-    wanted = [n.strip() for n in names.split(",") if n.strip()]
-    if not wanted:
-        from geoshape.errors import InvalidOptionError
-
-        valid = ", ".join(s.name for s in DEV_SETS)
-        raise InvalidOptionError(f"--sets {names!r} names no dev set; valid: {valid}")
-    for name in wanted:
-        check_choice("dev set", name, [s.name for s in DEV_SETS])
+    wanted = _named("--sets", "dev set", "dev set", names, [s.name for s in DEV_SETS])
     return [s for s in DEV_SETS if s.name in wanted]
+
+
+def prepared_sets(args: argparse.Namespace, log) -> list[tuple[DevSet, Path]]:
+    """``(spec, folder)`` of every dev set ``args.sets`` selects, generated into ``args.dev_dir``
+    where missing (:func:`prepare_set`); names and ``args.fields`` are checked first."""
+    specs = selected_sets(getattr(args, "sets", None))
+    sensitivity_fields(getattr(args, "fields", None))  # a bad --fields fails before any generation
+    dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
+    return [(spec, prepare_set(spec, dev_dir, log)) for spec in specs]
 
 
 def run_suite(args: argparse.Namespace) -> int:
@@ -224,13 +230,10 @@ def run_suite(args: argparse.Namespace) -> int:
     ``--sensitivity`` the sensitivity table instead (geoshape only, its own section)."""
     from geoshape.bench.correspondence import peer_methods
 
-    dev_dir = Path(args.dev_dir) if args.dev_dir else default_dev_dir()
     log = lambda text: print(text, flush=True)  # noqa: E731
-    specs = selected_sets(getattr(args, "sets", None))
-    fields = sensitivity_fields(getattr(args, "fields", None))  # checked before any generation
-    sets = [(spec, prepare_set(spec, dev_dir, log)) for spec in specs]
+    sets = prepared_sets(args, log)
     if args.sensitivity:
-        return _run_sensitivity(args, sets, log, fields)
+        return _run_sensitivity(args, sets, log, sensitivity_fields(getattr(args, "fields", None)))
     methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
     return _run_table(args, sets, methods, log)
 

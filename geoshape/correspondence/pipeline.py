@@ -472,26 +472,33 @@ def distinct_hypotheses(ctx: PairContext, ranked: list[Candidate], n: int,
     """
     if spacings <= 0:
         return list(ranked[:n]), list(ranked[n:])
-    picked, rest = [], []
+    limit = hypothesis_spacing(ctx, spacings)
+    picked, rest, images = [], [], []
     for c in ranked:
-        if len(picked) < n and is_new_hypothesis(ctx, c, picked, spacings):
+        image = coarse_image(ctx, c) if len(picked) < n else None
+        if image is not None and is_new_hypothesis(image, images, limit):
             picked.append(c)
+            images.append(image)
         else:
             rest.append(c)
     return picked, rest
 
 
-def is_new_hypothesis(ctx: PairContext, c: Candidate, others: list[Candidate], spacings: float) -> bool:
-    """Whether the coarse map of ``c`` differs from that of every one of ``others`` by at least
-    ``spacings`` screening-sample spacings on average (the rule of :func:`distinct_hypotheses`;
-    always True when ``spacings`` <= 0). O(len(others) · s)."""
-    if spacings <= 0:
-        return True
+def coarse_image(ctx: PairContext, c: Candidate) -> np.ndarray:
+    """``(s, 3)``: where the coarse map of ``c`` sends mesh 1's screening samples, in space."""
     _, at = distortion_rows(ctx, ctx.c1, len(ctx.c1))
-    limit = spacings * np.sqrt(ctx.m2.area / len(ctx.c2))
-    V2 = ctx.m2.V
-    image = V2[c.coarse_map[at]]
-    return all(np.linalg.norm(image - V2[o.coarse_map[at]], axis=1).mean() >= limit for o in others)
+    return ctx.m2.V[c.coarse_map[at]]
+
+
+def hypothesis_spacing(ctx: PairContext, spacings: float) -> float:
+    """``spacings`` screening-sample spacings of mesh 2, √(area / screening samples) each."""
+    return spacings * float(np.sqrt(ctx.m2.area / len(ctx.c2)))
+
+
+def is_new_hypothesis(image: np.ndarray, images: list[np.ndarray], limit: float) -> bool:
+    """Whether a :func:`coarse_image` lies, on average over the samples, at least ``limit`` from
+    each of ``images`` (the rule of :func:`distinct_hypotheses`). O(len(images) · s)."""
+    return all(np.linalg.norm(image - other, axis=1).mean() >= limit for other in images)
 
 
 def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
@@ -500,7 +507,8 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     by :func:`screening_score`, whatever their coarse orientation: coarse orientation is weak;
     :func:`distinct_hypotheses`); while every refined map has the unwanted orientation, refine
     the candidate of most wanted coarse orientation next, at most ``max(n_refine, 1)`` more,
-    skipping copies of maps already refined (:func:`is_new_hypothesis`).
+    skipping copies of maps already refined (:func:`is_new_hypothesis`; with
+    ``distinct_spacing`` 0 nothing is a copy).
     Fills the refined scores and returns the refined candidates in the order refined;
     O(n_refine · iter s^2 lb_k).
     """
@@ -509,10 +517,15 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     picked, rest = distinct_hypotheses(ctx, ranked, n, options.distinct_spacing)
     refined = [_refine_into(ctx, c, c.coarse_map, options) for c in picked]
     sign = 1.0 if options.prefer == "preserving" else -1.0
+    limit = hypothesis_spacing(ctx, options.distinct_spacing)
+    images = None  # coarse images of the refined maps and of the rest, once the fallback runs
     for _ in range(n):
         if not all(r.unwanted for r in refined):
             break
-        rest = [c for c in rest if is_new_hypothesis(ctx, c, refined, options.distinct_spacing)]
+        if images is None:
+            images = {id(c): coarse_image(ctx, c) for c in refined + rest}
+        rest = [c for c in rest
+                if is_new_hypothesis(images[id(c)], [images[id(r)] for r in refined], limit)]
         if not rest:
             break
         c = max(rest, key=lambda x: (sign * coarse_orientation(ctx, x), -x.zoomout_energy))
