@@ -91,7 +91,7 @@ class GeoshapeOptions:
     """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
     final_k: int = field(default=100, metadata=_int(1))
     """Basis size the final full-resolution ZoomOut grows to from ``lb_k`` (≤ ``lb_k``: none)."""
-    final_step: int = field(default=10, metadata=_int(1))
+    final_step: int = field(default=5, metadata=_int(1))
     """Basis size added per iteration of the final full-resolution ZoomOut."""
     screen_k: int = field(default=16, metadata=_int(1))
     """Basis size at the end of the coarse screening ZoomOut (at most ``lb_k``)."""
