@@ -45,7 +45,7 @@ from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError, MissingDependencyError
 
 __all__ = ["BACKENDS", "ON_ERROR", "run_map", "pairwise_matrix", "default_n_jobs", "blas_threads",
-           "single_thread_blas"]
+           "single_thread_blas", "beside", "stage_processes", "can_run_beside"]
 
 log = logging.getLogger(__name__)
 
@@ -126,6 +126,13 @@ def _run_chunk(func: Callable, chunk: Sequence, on_error: str) -> list:
         except Exception as exc:
             out.append(_portable_exception(exc))
     return out
+
+
+def _worker_chunk(func: Callable, chunk: Sequence, on_error: str) -> list:
+    """:func:`_run_chunk` in a worker process of :func:`run_map`: no stage of ``func`` runs
+    :func:`beside` another (every core already runs a chunk)."""
+    with stage_processes(False):
+        return _run_chunk(func, chunk, on_error)
 
 
 def _pair_block(
@@ -341,7 +348,7 @@ def _run_processes(func, items, chunks, on_error, workers, results, bar) -> None
     futures: dict = {}
     try:
         for rng_ in chunks:
-            fut = executor.submit(_run_chunk, func, [items[i] for i in rng_], on_error)
+            fut = executor.submit(_worker_chunk, func, [items[i] for i in rng_], on_error)
             futures[fut] = rng_
         pending = set(futures)
         while pending:
@@ -395,7 +402,7 @@ def _run_dask(func, items, chunks, on_error, workers, scheduler, results, bar) -
     try:
         for rng_ in chunks:
             fut = client.submit(
-                _run_chunk, func, [items[i] for i in rng_], on_error, pure=False
+                _worker_chunk, func, [items[i] for i in rng_], on_error, pure=False
             )
             futures[fut] = rng_
         for fut in as_completed(list(futures)):
@@ -531,3 +538,163 @@ def pairwise_matrix(
         if symmetric and ri != rj:
             D[rj.start : rj.stop, ri.start : ri.stop] = block.T
     return D
+
+
+# ---------------------------------------------------------------------------------------
+# One job's independent stages on a second core
+# ---------------------------------------------------------------------------------------
+
+#: whether :func:`beside` may fork (switched off by :func:`stage_processes`, e.g. in the
+#: workers of :func:`run_map`, where every core already runs an item)
+_STAGE_PROCESSES = True
+#: environment switch: ``GEOSHAPE_STAGE_PROCESSES=0`` runs every stage in this process
+STAGE_PROCESSES_ENV = "GEOSHAPE_STAGE_PROCESSES"
+
+
+@contextlib.contextmanager
+def stage_processes(enabled: bool):
+    """Context manager allowing (``True``) or forbidding (``False``) :func:`beside` to run a
+    stage in a forked process while it lasts; restores the previous setting."""
+    global _STAGE_PROCESSES
+    before, _STAGE_PROCESSES = _STAGE_PROCESSES, bool(enabled)
+    try:
+        yield
+    finally:
+        _STAGE_PROCESSES = before
+
+
+def can_run_beside() -> bool:
+    """Whether :func:`beside` forks: on Linux, from the main thread of a non-daemon process
+    with at least two usable cores, unless :func:`stage_processes` (``False``) or
+    ``GEOSHAPE_STAGE_PROCESSES=0`` says not to."""
+    import multiprocessing
+    import threading
+
+    if not _STAGE_PROCESSES or os.environ.get(STAGE_PROCESSES_ENV, "1") == "0":
+        return False
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+        return False  # macOS: fork is unsafe with system frameworks; Windows: none
+    if threading.current_thread() is not threading.main_thread() or multiprocessing.current_process().daemon:
+        return False
+    try:
+        return len(os.sched_getaffinity(0)) >= 2
+    except (AttributeError, OSError):
+        return (os.cpu_count() or 1) >= 2
+
+
+class Beside:
+    """The result of ``fn()`` computed by :func:`beside`: in a forked child process while the
+    caller goes on, or already computed here. :meth:`result` returns it (re-raising the
+    child's exception); :meth:`cancel` kills an unfinished child."""
+
+    def __init__(self, fn: Callable[[], Any]):
+        self._fn = fn
+        self._pid: int | None = None
+        self._fd: int | None = None
+        self._done = False
+        self._value: Any = None
+        self._error: BaseException | None = None
+        if can_run_beside():
+            self._fork()
+        else:
+            self._run_here()
+
+    def _run_here(self) -> None:
+        try:
+            self._value = self._fn()
+        except Exception as exc:
+            self._error = exc
+        self._done = True
+
+    def _fork(self) -> None:
+        import pickle
+
+        read_fd, write_fd = os.pipe()
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:  # child: compute, send the pickled outcome, leave without cleanup
+            code = 1
+            try:
+                die_with_parent(parent)
+                os.close(read_fd)
+                try:
+                    payload = (True, self._fn())
+                except Exception as exc:
+                    payload = (False, _portable_exception(exc))
+                data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
+                with os.fdopen(write_fd, "wb") as f:
+                    f.write(data)
+                code = 0
+            finally:
+                os._exit(code)  # no atexit handlers, no flush of the parent's buffers
+        os.close(write_fd)
+        self._pid, self._fd = pid, read_fd
+
+    def result(self) -> Any:
+        """The value of ``fn()``. A child that died without an answer (killed, out of memory)
+        is replaced by computing ``fn()`` here."""
+        if not self._done:
+            import pickle
+
+            with os.fdopen(self._fd, "rb") as f:
+                self._fd = None
+                data = f.read()
+            os.waitpid(self._pid, 0)
+            self._pid = None
+            try:
+                ok, value = pickle.loads(data)
+            except Exception:
+                log.warning("a forked stage ended without a result; computing it in this process")
+                self._run_here()
+            else:
+                self._done = True
+                if ok:
+                    self._value = value
+                else:
+                    self._error = value
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+    def cancel(self) -> None:
+        """Kill the child if it still runs (e.g. after Ctrl-C or an error in the caller)."""
+        import signal
+
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+        if self._pid is not None:
+            with contextlib.suppress(ProcessLookupError, ChildProcessError):
+                os.kill(self._pid, signal.SIGKILL)
+                os.waitpid(self._pid, 0)
+            self._pid = None
+
+    def __enter__(self) -> Beside:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.cancel()
+
+    def __del__(self):
+        with contextlib.suppress(Exception):
+            self.cancel()
+
+
+def beside(fn: Callable, *args, **kwargs) -> Beside:
+    """Run ``fn(*args, **kwargs)`` on another core while the caller goes on, for a stage of one
+    job that does not depend on what the caller does meanwhile (two meshes' eigenproblems
+    while the embeddings are aligned). The child is a fork: it sees every array and cache as
+    they are now at no copying cost, and only its result travels back (pickled through a
+    pipe, O(result size)). Changes the child makes to caches stay in the child: return what
+    the caller needs.
+
+    Where forking is not possible or not wanted (:func:`can_run_beside`) ``fn`` runs here and
+    now, so the result is the same either way. Use as a context manager, or call
+    :meth:`Beside.cancel` in a ``finally``, so that an error or Ctrl-C in the caller does not
+    leave the child running.
+
+    >>> with beside(sum, [1, 2, 3]) as total:
+    ...     total.result()
+    6
+    """
+    return Beside(lambda: fn(*args, **kwargs))

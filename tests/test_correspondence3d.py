@@ -334,3 +334,16 @@ def test_batch_refuses_pairs_whose_map_names_collide_before_any_work(tmp_path):
     with pytest.raises(DatasetError, match=r"would both write x__y.txt"):
         correspond_batch(tmp_path, tmp_path / "out", method="rigid-icp", backend="serial", progress=False)
     assert not any((tmp_path / "out").glob("*.txt"))
+
+
+def test_stages_beside_each_other_give_the_same_map_as_one_process():
+    from geoshape.parallel import stage_processes
+
+    V1, V2, F = figure("biped")
+    with stage_processes(False):
+        alone = correspond(V1, F, V2, F)
+    together = correspond(V1, F, V2, F)
+    np.testing.assert_array_equal(alone.p2p_12, together.p2p_12)
+    sources = [[c.source for c in r.details["candidates"]] for r in (alone, together)]
+    assert sources[0] == sources[1]
+    assert "eigenpairs (beside)" in together.timings

@@ -137,3 +137,76 @@ def test_pairwise_asymmetric_backends(dask_client):
         np.testing.assert_array_equal(D, expected)
     D = pairwise_matrix(l1, ITEMS, backend="processes", n_jobs=2, block_size=2)
     np.testing.assert_array_equal(D, EXPECTED_L1)
+
+
+# ---------------------------------------------------------------------------------------
+# beside: one job's independent stage on a second core
+# ---------------------------------------------------------------------------------------
+
+forking = pytest.mark.skipif(not __import__("geoshape.parallel", fromlist=["x"]).can_run_beside(),
+                             reason="beside runs stages in a forked process only on Linux with 2+ cores")
+
+
+def _pid_and_square(x):
+    import os
+
+    return os.getpid(), x * x
+
+
+@forking
+def test_beside_runs_in_another_process_and_returns_the_value():
+    import os
+
+    from geoshape.parallel import beside
+
+    with beside(_pid_and_square, 7) as stage:
+        pid, value = stage.result()
+    assert value == 49 and pid != os.getpid()
+
+
+def test_beside_runs_here_when_stage_processes_are_off():
+    import os
+
+    from geoshape.parallel import beside, can_run_beside, stage_processes
+
+    with stage_processes(False):
+        assert not can_run_beside()
+        with beside(_pid_and_square, 3) as stage:
+            assert stage.result() == (os.getpid(), 9)
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_beside_reraises_the_stage_error_with_its_type(enabled):
+    from geoshape.parallel import beside, stage_processes
+
+    def bad():
+        raise InvalidOptionError("stage: k must be positive, got -1")
+
+    with stage_processes(enabled), beside(bad) as stage, pytest.raises(InvalidOptionError, match="k must be"):
+        stage.result()
+
+
+@forking
+def test_beside_cancel_kills_an_unfinished_child():
+    import os
+    import time
+
+    from geoshape.parallel import beside
+
+    stage = beside(time.sleep, 60)
+    pid = stage._pid
+    stage.cancel()
+    with pytest.raises(ChildProcessError):  # reaped: no process of that id is left to wait for
+        os.waitpid(pid, os.WNOHANG)
+
+
+def _can_run_beside(_):
+    from geoshape.parallel import can_run_beside
+
+    return can_run_beside()
+
+
+@forking
+def test_run_map_workers_do_not_fork_stages_but_a_serial_run_does():
+    assert run_map(_can_run_beside, [0, 1], backend="processes", n_jobs=2, progress=False) == [False, False]
+    assert run_map(_can_run_beside, [0], backend="serial", progress=False) == [True]

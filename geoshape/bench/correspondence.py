@@ -21,6 +21,7 @@ on, ZoomOut refinement nit = 16, step = 5.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,6 +95,26 @@ def _landmark_sets(pair, n_vertices_1, n_vertices_2, n_landmarks, seed, feature_
     sel = np.sort(rng.choice(k, min(n_landmarks, k), replace=False))
     sym = None if pair.target_symmetric_landmarks is None else pair.target_symmetric_landmarks[sel]
     return pair.source_landmarks[sel], pair.target_landmarks[sel], sym
+
+
+def process_note() -> str:
+    """How the timed methods used the cores, for a RESULTS header: the geoshape method runs
+    independent stages of a pair beside each other (:func:`geoshape.parallel.beside`) unless
+    ``GEOSHAPE_STAGE_PROCESSES=0`` or the machine cannot; every other method, and pyFM, in one
+    process; every one with one BLAS thread."""
+    from geoshape.parallel import can_run_beside
+
+    if can_run_beside():
+        return ("geoshape runs independent stages of a pair on a second core (geoshape.parallel.beside), "
+                "every other method and the peer in one process; one BLAS thread each")
+    return "every method in one process (GEOSHAPE_STAGE_PROCESSES=0 or one core), one BLAS thread"
+
+
+def env_prefix() -> str:
+    """``GEOSHAPE_STAGE_PROCESSES=0 `` when that switch is set, for the command a RESULTS header shows."""
+    from geoshape.parallel import STAGE_PROCESSES_ENV
+
+    return f"{STAGE_PROCESSES_ENV}=0 " if os.environ.get(STAGE_PROCESSES_ENV, "1") == "0" else ""
 
 
 def run(args: argparse.Namespace) -> int:
@@ -333,7 +354,7 @@ def _run(args: argparse.Namespace) -> int:
                 else "symmetry-aware: per pair the better of direct and mirrored ground truth")
     text = (f"### 3D correspondence — {set_name}\n\nCommand: `{cmd}`. Errors: geodesic distance / √area on "
             f"the target, mean over pairs of the per-pair mean ({sym_note}); ≤ t: share of landmarks "
-            f"(direct, in parentheses symmetry-aware). Times: end to end per pair, one process "
+            f"(direct, in parentheses symmetry-aware). Times: end to end per pair, {process_note()} "
             f"({machine_note()}; a method and its peer ran in turn on each pair, under the same load)."
             f"\n\n{table}\n{ratio}")
     print(text)

@@ -255,7 +255,7 @@ def _write(args, section: str, text: str) -> None:
 
 
 def _run_table(args, sets, methods, log) -> int:
-    from geoshape.bench.correspondence import evaluate_pairs
+    from geoshape.bench.correspondence import env_prefix, evaluate_pairs, process_note
     from geoshape.bench.experiments._common import machine_note
 
     rows = []
@@ -271,7 +271,7 @@ def _run_table(args, sets, methods, log) -> int:
     # the command as typed: pyFM is the default peer, not a method name
     given = f" --methods {args.methods}" if getattr(args, "methods", None) else ""
     peer = "" if getattr(args, "peer", "pyfm") == "pyfm" else f" --peer {args.peer}"
-    cmd = (f"geoshape bench correspondence --suite generalization{only}{limit}{given}{peer} "
+    cmd = (f"{env_prefix()}geoshape bench correspondence --suite generalization{only}{limit}{given}{peer} "
            f"--landmarks {args.landmarks}")
     text = (f"### 3D correspondence — generalization suite (issue #14)\n\nCommand: `{cmd}`. "
             f"Sets: {_set_list(sets)}{_spread_note(args.limit)}; "
@@ -281,8 +281,8 @@ def _run_table(args, sets, methods, log) -> int:
             f"ground truth; SCAPE and remeshed SCAPE are scored on their 36 feature points); median pair "
             f"error: median of the per-pair direct means; ≤ t: share of all landmarks (direct); failures: "
             f"pairs with mean direct error > {FAILURE_ERROR} (or an exception); flips: failures whose "
-            f"symmetry-aware error is under {FLIP_RATIO:g} × the direct one. Times: end to end per pair "
-            f"({machine_note()}).\n\n{suite_table(rows)}\n")
+            f"symmetry-aware error is under {FLIP_RATIO:g} × the direct one. Times: end to end per pair; "
+            f"{process_note()} ({machine_note()}).\n\n{suite_table(rows)}\n")
     _write(args, SECTION, text)
     return 0
 

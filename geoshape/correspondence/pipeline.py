@@ -322,6 +322,55 @@ def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOp
     return A, B, alignments + sign_flip_variants(alignments, A, B)
 
 
+def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> int:
+    """Eigenpairs of each mesh's one eigen-solve: ``final_k``, at most one per
+    :data:`FINAL_VERTICES_PER_EIGENPAIR` vertices of the smaller mesh, at least ``lb_k``
+    (clipped to n − 1)."""
+    lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
+    return max(lb_k, min(options.final_k, min(m1.n, m2.n) // FINAL_VERTICES_PER_EIGENPAIR))
+
+
+#: the per-mesh cache entries a stage run :func:`~geoshape.parallel.beside` the others hands back
+_SHARED_CACHES = ("laplacian", "descriptor_operators")
+
+
+def _with_new_caches(fn, meshes: tuple, *args):
+    """``(fn(*args), entries)``: also the :data:`_SHARED_CACHES` entries ``fn`` added to each
+    mesh's cache, so that a forked stage's eigen-solves and operators reach the parent."""
+    before = [set(m._cache) for m in meshes]
+    value = fn(*args)
+    entries = [{key: m._cache[key] for key in m._cache if key not in seen and key[0] in _SHARED_CACHES}
+               for m, seen in zip(meshes, before, strict=True)]
+    return value, entries
+
+
+def _joined(stage, meshes: tuple):
+    """The value of a :func:`_with_new_caches` stage, its cache entries stored in ``meshes``."""
+    value, entries = stage.result()
+    for m, new in zip(meshes, entries, strict=True):
+        for key, entry in new.items():
+            m.cached(key, lambda entry=entry: entry)
+    return value
+
+
+def _eigenpairs(m: PreparedMesh, k: int) -> float:
+    """``m``'s ``k`` Laplace–Beltrami eigenpairs (cached); returns the seconds taken."""
+    t = time.perf_counter()
+    m.laplacian(k)
+    return time.perf_counter() - t
+
+
+def _descriptor_and_coarse(ctx: PairContext, alignments: list, options: GeoshapeOptions):
+    """``(descriptor candidates, coarse candidates, timings)``: :func:`descriptor_candidates`
+    and :func:`coarse_candidates` of ``alignments``, the share of stages 3–4b run beside the others."""
+    timings: dict = {}
+    described = descriptor_candidates(ctx, options, timings)
+    t = time.perf_counter()
+    coarse = coarse_candidates(ctx, alignments, options)
+    timings["screening"] = time.perf_counter() - t
+    return described, coarse, timings
+
+
 def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarray, options: GeoshapeOptions,
                  timings: dict) -> PairContext:
     """Stage 2: Laplace–Beltrami bases (``lb_k`` eigenpairs), refinement and screening samples
@@ -332,7 +381,7 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
     seed = options.seed
     lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
     screen_k = min(options.screen_k, lb_k)
-    final_k = max(lb_k, min(options.final_k, min(m1.n, m2.n) // FINAL_VERTICES_PER_EIGENPAIR))
+    final_k = final_basis_size(m1, m2, options)
     m1.laplacian(final_k), m2.laplacian(final_k)  # one eigen-solve per mesh for every stage
     b1, b2 = m1.laplacian(lb_k), m2.laplacian(lb_k)
     zs, ss = options.zoomout_samples, options.screen_samples
@@ -377,17 +426,24 @@ def coarse_orientation(ctx: PairContext, c: Candidate) -> float:
 
 def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
     """Stage 3: one :class:`Candidate` per alignment, in the same order, with its coarse map,
-    ``zoomout_energy`` and ``coarse_distortion``: TPS-ICP O(iter c^3) on
-    ``n_controls`` controls, then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples``
-    samples O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed
-    order only 5th–15th), then :func:`geodesic_distortion` of every coarse map on the
-    ``distortion_samples`` rows the decision uses (Dijkstra from the distinct images, at most
-    ``screen_samples`` sources on mesh 2).
+    ``zoomout_energy`` and ``coarse_distortion``: :func:`coarse_candidates`, then
+    :func:`measure_coarse_distortion`.
     """
+    t = time.perf_counter()
+    candidates = coarse_candidates(ctx, alignments, options)
+    measure_coarse_distortion(ctx, candidates, options)
+    timings["screening"] = timings.get("screening", 0.0) + time.perf_counter() - t
+    return candidates
+
+
+def coarse_candidates(ctx: PairContext, alignments: list, options: GeoshapeOptions) -> list[Candidate]:
+    """One :class:`Candidate` per alignment with its coarse map and ``zoomout_energy``:
+    TPS-ICP O(iter c^3) on ``n_controls`` controls, then ZoomOut ``zoomout_start`` →
+    ``screen_k`` on ``screen_samples`` samples O(iter s^2 k) (the thesis' L2 reordering cost
+    alone often ranks the right signed order only 5th–15th)."""
     from geoshape.correspondence.fmaps.zoomout import zoomout
     from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
-    t = time.perf_counter()
     A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
     # the controls of B do not depend on the signed order (FPS distances are invariant);
     # on large meshes they are matched against the refinement samples of A only
@@ -404,13 +460,21 @@ def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings
                                  k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
                                  return_energy=True, samples_only=large, final_on_samples=not large)
         candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy))
-    rows, at = distortion_rows(ctx, c1, options.distortion_samples)
+    return candidates
+
+
+def measure_coarse_distortion(ctx: PairContext, candidates: list[Candidate],
+                              options: GeoshapeOptions) -> None:
+    """Fill ``coarse_distortion`` of ``candidates``: :func:`geodesic_distortion` of every coarse
+    map on the ``distortion_samples`` rows the decision uses (Dijkstra from the distinct
+    images, at most ``screen_samples`` sources on mesh 2, cached)."""
+    if not candidates:
+        return
+    rows, at = distortion_rows(ctx, ctx.c1, options.distortion_samples)
     distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates],
                                       within=ctx.s2)
     for c, d in zip(candidates, distortions, strict=True):
         c.coarse_distortion = d
-    timings["screening"] = time.perf_counter() - t
-    return candidates
 
 
 def screening_score(c: Candidate) -> float:
@@ -449,7 +513,27 @@ def is_unwanted(orientation: float, prefer: str) -> bool:
 def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: GeoshapeOptions,
                  **kwargs) -> Candidate:
     """Refine ``init`` and store map and scores in ``c``; returns ``c``."""
-    c.refined_map, c.refined_energy, c.refined_orientation = refine_map(ctx, init, options, **kwargs)
+    return _store_refined(c, refine_map(ctx, init, options, **kwargs), options)
+
+
+def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
+                        options: GeoshapeOptions) -> list[Candidate]:
+    """:func:`_refine_into` of each candidate's coarse map, the second half
+    :func:`~geoshape.parallel.beside` the first; returns ``candidates``."""
+    from geoshape.parallel import beside
+
+    half = (len(candidates) + 1) // 2
+    with beside(lambda: [refine_map(ctx, c.coarse_map, options) for c in candidates[half:]]) as side:
+        for c in candidates[:half]:
+            _refine_into(ctx, c, c.coarse_map, options)
+        for c, refined in zip(candidates[half:], side.result(), strict=True):
+            _store_refined(c, refined, options)
+    return candidates
+
+
+def _store_refined(c: Candidate, refined: tuple, options: GeoshapeOptions) -> Candidate:
+    """Store :func:`refine_map`'s ``(map, energy, orientation)`` and the scores derived from it in ``c``."""
+    c.refined_map, c.refined_energy, c.refined_orientation = refined
     c.unwanted = is_unwanted(c.refined_orientation, options.prefer)
     sign = 1.0 if options.prefer == "preserving" else -1.0
     c.orientation_share = (1.0 + sign * c.refined_orientation) / 2.0
@@ -515,7 +599,7 @@ def refine(ctx: PairContext, ranked: list[Candidate], options: GeoshapeOptions,
     t = time.perf_counter()
     n = max(options.n_refine, 1)
     picked, rest = distinct_hypotheses(ctx, ranked, n, options.distinct_spacing)
-    refined = [_refine_into(ctx, c, c.coarse_map, options) for c in picked]
+    refined = _refine_coarse_maps(ctx, picked, options)
     sign = 1.0 if options.prefer == "preserving" else -1.0
     limit = hypothesis_spacing(ctx, options.distinct_spacing)
     images = None  # coarse images of the refined maps and of the rest, once the fallback runs
@@ -841,13 +925,39 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     with on large meshes, else None: maps hold every vertex).
     """
     from geoshape.correspondence.mesh_matching import Correspondence
+    from geoshape.parallel import beside
 
     timings: dict = {}
-    A, B, alignments = candidate_alignments(m1, m2, options, timings)
+    meshes = (m1, m2)
+    # independent stages run beside each other on a second core (parallel.beside): mesh 1's
+    # eigen-solve beside mesh 2's and the embeddings' alignment, the descriptor map and half
+    # the screening beside the other half, half the refinements beside the others; the same
+    # maps whether or not they do
+    k = final_basis_size(m1, m2, options)
+    with beside(_with_new_caches, _eigenpairs, (m1,), m1, k) as basis1:
+        t = time.perf_counter()
+        m2.laplacian(k)
+        timings["eigenpairs"] = time.perf_counter() - t
+        A, B, alignments = candidate_alignments(m1, m2, options, timings)
+        timings["eigenpairs (beside)"] = _joined(basis1, (m1,))
     ctx = pair_context(m1, m2, A, B, options, timings)
-    ranked = sorted(screen(ctx, alignments, options, timings), key=screening_score)
+    # beside: the descriptor map and the coarse maps of the second half of the alignments;
+    # here: the first half's coarse maps and distortion, then the second half's distortion
+    # (Dijkstra rows stay cached in this process)
+    half = len(alignments) // 2
+    with beside(_with_new_caches, _descriptor_and_coarse, meshes, ctx, alignments[half:], options) as side:
+        t = time.perf_counter()
+        screened = coarse_candidates(ctx, alignments[:half], options)
+        measure_coarse_distortion(ctx, screened, options)
+        timings["screening"] = time.perf_counter() - t
+        descriptor_maps, coarse_beside, side_timings = _joined(side, meshes)
+    t = time.perf_counter()
+    measure_coarse_distortion(ctx, coarse_beside, options)
+    timings["screening"] += time.perf_counter() - t
+    timings.update({f"{key} (beside)": value for key, value in side_timings.items()})
+    ranked = sorted(screened + coarse_beside, key=screening_score)
     refined = refine(ctx, ranked, options, timings)
-    refined += descriptor_candidates(ctx, options, timings)
+    refined += descriptor_maps
     measure_distortion(ctx, refined, options, timings)
     repaired = orientation_repair(ctx, refined, options, timings)
     measure_distortion(ctx, repaired, options, timings)
