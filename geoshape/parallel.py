@@ -35,6 +35,7 @@ import logging
 import math
 import os
 import sys
+import threading
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
@@ -544,9 +545,10 @@ def pairwise_matrix(
 # One job's independent stages on a second core
 # ---------------------------------------------------------------------------------------
 
-#: whether :func:`beside` may fork (switched off by :func:`stage_processes`, e.g. in the
-#: workers of :func:`run_map`, where every core already runs an item)
-_STAGE_PROCESSES = True
+#: whether :func:`beside` may fork, per thread (switched off by :func:`stage_processes`,
+#: e.g. in the workers of :func:`run_map`, where every core already runs an item, and in a
+#: forked child itself)
+_STAGE_SETTING = threading.local()
 #: environment switch: ``GEOSHAPE_STAGE_PROCESSES=0`` runs every stage in this process
 STAGE_PROCESSES_ENV = "GEOSHAPE_STAGE_PROCESSES"
 
@@ -554,27 +556,36 @@ STAGE_PROCESSES_ENV = "GEOSHAPE_STAGE_PROCESSES"
 @contextlib.contextmanager
 def stage_processes(enabled: bool):
     """Context manager allowing (``True``) or forbidding (``False``) :func:`beside` to run a
-    stage in a forked process while it lasts; restores the previous setting."""
-    global _STAGE_PROCESSES
-    before, _STAGE_PROCESSES = _STAGE_PROCESSES, bool(enabled)
+    stage in a forked process while it lasts, in this thread; restores the previous setting.
+    Wrap work you parallelise yourself (your own process pool) in ``stage_processes(False)``."""
+    before = getattr(_STAGE_SETTING, "enabled", True)
+    _STAGE_SETTING.enabled = bool(enabled)
     try:
         yield
     finally:
-        _STAGE_PROCESSES = before
+        _STAGE_SETTING.enabled = before
+
+
+def _other_threads() -> list:
+    """Live threads other than this one, except tqdm's monitor (it only sleeps and polls)."""
+    me = threading.current_thread()
+    return [t for t in threading.enumerate() if t is not me and type(t).__name__ != "TMonitor"]
 
 
 def can_run_beside() -> bool:
     """Whether :func:`beside` forks: on Linux, from the main thread of a non-daemon process
-    with at least two usable cores, unless :func:`stage_processes` (``False``) or
+    with no other live thread (a lock held by another thread at the fork would stay held in
+    the child) and at least two usable cores, unless :func:`stage_processes` (``False``) or
     ``GEOSHAPE_STAGE_PROCESSES=0`` says not to."""
     import multiprocessing
-    import threading
 
-    if not _STAGE_PROCESSES or os.environ.get(STAGE_PROCESSES_ENV, "1") == "0":
+    if not getattr(_STAGE_SETTING, "enabled", True) or os.environ.get(STAGE_PROCESSES_ENV, "1") == "0":
         return False
     if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
         return False  # macOS: fork is unsafe with system frameworks; Windows: none
     if threading.current_thread() is not threading.main_thread() or multiprocessing.current_process().daemon:
+        return False
+    if _other_threads():
         return False
     try:
         return len(os.sched_getaffinity(0)) >= 2
@@ -587,17 +598,17 @@ class Beside:
     caller goes on, or already computed here. :meth:`result` returns it (re-raising the
     child's exception); :meth:`cancel` kills an unfinished child."""
 
-    def __init__(self, fn: Callable[[], Any]):
+    def __init__(self, fn: Callable[[], Any], fork: bool | None = None):
         self._fn = fn
+        self._owner = os.getpid()
         self._pid: int | None = None
         self._fd: int | None = None
         self._done = False
         self._value: Any = None
         self._error: BaseException | None = None
-        if can_run_beside():
-            self._fork()
-        else:
-            self._run_here()
+        if (can_run_beside() if fork is None else fork) and self._fork():
+            return
+        self._run_here()
 
     def _run_here(self) -> None:
         try:
@@ -606,68 +617,98 @@ class Beside:
             self._error = exc
         self._done = True
 
-    def _fork(self) -> None:
-        import pickle
-
-        read_fd, write_fd = os.pipe()
+    def _fork(self) -> bool:
+        """Start the child; False (nothing started, nothing left open) if the system refuses."""
+        try:
+            read_fd, write_fd = os.pipe()
+        except OSError as exc:
+            log.warning("cannot run a stage beside the others (%s); running it here", exc)
+            return False
+        for stream in (sys.stdout, sys.stderr):  # nothing buffered is written twice
+            with contextlib.suppress(Exception):
+                stream.flush()
         parent = os.getpid()
-        pid = os.fork()
-        if pid == 0:  # child: compute, send the pickled outcome, leave without cleanup
-            code = 1
-            try:
-                die_with_parent(parent)
-                os.close(read_fd)
-                try:
-                    payload = (True, self._fn())
-                except Exception as exc:
-                    payload = (False, _portable_exception(exc))
-                data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(write_fd, "wb") as f:
-                    f.write(data)
-                code = 0
-            finally:
-                os._exit(code)  # no atexit handlers, no flush of the parent's buffers
-        os.close(write_fd)
+        try:
+            pid = os.fork()
+        except OSError as exc:  # e.g. a process limit, or no memory for the page tables
+            os.close(read_fd)
+            os.close(write_fd)
+            log.warning("cannot fork to run a stage beside the others (%s); running it here", exc)
+            return False
+        if pid == 0:
+            self._child(read_fd, write_fd, parent)
         self._pid, self._fd = pid, read_fd
+        os.close(write_fd)
+        return True
+
+    def _child(self, read_fd: int, write_fd: int, parent: int) -> None:
+        """In the child: compute, send the pickled outcome (or the error), leave at once."""
+        import pickle
+        import signal
+
+        code = 1
+        try:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handlers
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            die_with_parent(parent)
+            _STAGE_SETTING.enabled = False  # no grandchildren
+            os.close(read_fd)
+            try:
+                data = pickle.dumps((True, self._fn()), protocol=pickle.HIGHEST_PROTOCOL)
+            except Exception as exc:  # the stage's error, or a result that cannot be pickled
+                data = pickle.dumps((False, _portable_exception(exc)), protocol=pickle.HIGHEST_PROTOCOL)
+            with os.fdopen(write_fd, "wb") as f:
+                f.write(data)
+            code = 0
+        finally:
+            with contextlib.suppress(Exception):
+                sys.stderr.flush()
+            os._exit(code)  # no atexit handlers, no flush of buffers copied from the parent
 
     def result(self) -> Any:
-        """The value of ``fn()``. A child that died without an answer (killed, out of memory)
-        is replaced by computing ``fn()`` here."""
+        """The value of ``fn()``, or its exception raised here. Only a child killed before it
+        answered (by a signal, e.g. out of memory) is replaced by computing ``fn()`` here."""
         if not self._done:
             import pickle
 
             with os.fdopen(self._fd, "rb") as f:
                 self._fd = None
                 data = f.read()
-            os.waitpid(self._pid, 0)
-            self._pid = None
+            status = self._reap()
             try:
                 ok, value = pickle.loads(data)
             except Exception:
-                log.warning("a forked stage ended without a result; computing it in this process")
+                log.warning("a stage run beside the others ended without a result (wait status %s); "
+                            "computing it here", status)
                 self._run_here()
             else:
                 self._done = True
-                if ok:
-                    self._value = value
-                else:
-                    self._error = value
+                self._value, self._error = (value, None) if ok else (None, value)
         if self._error is not None:
             raise self._error
         return self._value
+
+    def _reap(self) -> int | None:
+        """Wait for the child; its wait status (None if something else reaped it)."""
+        pid, self._pid = self._pid, None
+        try:
+            return os.waitpid(pid, 0)[1]
+        except ChildProcessError:  # SIGCHLD ignored, or another child watcher was first
+            return None
 
     def cancel(self) -> None:
         """Kill the child if it still runs (e.g. after Ctrl-C or an error in the caller)."""
         import signal
 
+        if os.getpid() != self._owner:  # a copy inside some forked process: not ours to kill
+            return
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
         if self._pid is not None:
-            with contextlib.suppress(ProcessLookupError, ChildProcessError):
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(self._pid, signal.SIGKILL)
-                os.waitpid(self._pid, 0)
-            self._pid = None
+            self._reap()
 
     def __enter__(self) -> Beside:
         return self
@@ -680,21 +721,22 @@ class Beside:
             self.cancel()
 
 
-def beside(fn: Callable, *args, **kwargs) -> Beside:
+def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     """Run ``fn(*args, **kwargs)`` on another core while the caller goes on, for a stage of one
     job that does not depend on what the caller does meanwhile (two meshes' eigenproblems
-    while the embeddings are aligned). The child is a fork: it sees every array and cache as
-    they are now at no copying cost, and only its result travels back (pickled through a
-    pipe, O(result size)). Changes the child makes to caches stay in the child: return what
-    the caller needs.
+    while the embeddings are aligned). The child is a fork: it starts with every array and
+    cache as they are now, without copying them up front (pages are copied only when one
+    side writes to them), and only its result travels back (pickled through a pipe,
+    O(result size)). Changes the child makes to caches stay in the child: return what the
+    caller needs.
 
-    Where forking is not possible or not wanted (:func:`can_run_beside`) ``fn`` runs here and
-    now, so the result is the same either way. Use as a context manager, or call
-    :meth:`Beside.cancel` in a ``finally``, so that an error or Ctrl-C in the caller does not
-    leave the child running.
+    ``fork=None`` forks where that is safe and useful (:func:`can_run_beside`); ``fork=False``
+    runs ``fn`` here and now (e.g. when there is nothing to share the work with). Either way
+    the result is the same. Use as a context manager, or call :meth:`Beside.cancel` in a
+    ``finally``, so that an error or Ctrl-C in the caller does not leave the child running.
 
     >>> with beside(sum, [1, 2, 3]) as total:
     ...     total.result()
     6
     """
-    return Beside(lambda: fn(*args, **kwargs))
+    return Beside(lambda: fn(*args, **kwargs), fork=None if fork is None or fork else False)

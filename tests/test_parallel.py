@@ -210,3 +210,52 @@ def _can_run_beside(_):
 def test_run_map_workers_do_not_fork_stages_but_a_serial_run_does():
     assert run_map(_can_run_beside, [0, 1], backend="processes", n_jobs=2, progress=False) == [False, False]
     assert run_map(_can_run_beside, [0], backend="serial", progress=False) == [True]
+
+
+def test_beside_runs_here_when_the_system_refuses_to_fork(monkeypatch):
+    import os
+
+    from geoshape.parallel import beside
+
+    def refuse():
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(os, "fork", refuse)
+    before = len(os.listdir("/proc/self/fd")) if os.path.isdir("/proc/self/fd") else None
+    with beside(_pid_and_square, 5) as stage:
+        assert stage.result() == (os.getpid(), 25)
+    if before is not None:
+        assert len(os.listdir("/proc/self/fd")) == before  # both pipe ends closed
+
+
+@forking
+def test_beside_reports_a_result_that_cannot_cross_the_process_boundary():
+    from geoshape.parallel import beside
+
+    with beside(lambda: (lambda: 1)) as stage, pytest.raises(Exception, match="pickle"):
+        stage.result()
+
+
+def _can_fork_in_child():
+    from geoshape.parallel import can_run_beside
+
+    return can_run_beside()
+
+
+@forking
+def test_no_fork_inside_a_child_or_beside_another_thread():
+    import threading
+
+    from geoshape.parallel import beside, can_run_beside
+
+    with beside(_can_fork_in_child) as stage:
+        assert stage.result() is False
+    stop = threading.Event()
+    worker = threading.Thread(target=stop.wait)
+    worker.start()
+    try:
+        assert not can_run_beside()
+    finally:
+        stop.set()
+        worker.join()
+    assert can_run_beside()

@@ -107,7 +107,8 @@ def process_note() -> str:
     if can_run_beside():
         return ("geoshape runs independent stages of a pair on a second core (geoshape.parallel.beside), "
                 "every other method and the peer in one process; one BLAS thread each")
-    return "every method in one process (GEOSHAPE_STAGE_PROCESSES=0 or one core), one BLAS thread"
+    return ("every method in one process (GEOSHAPE_STAGE_PROCESSES=0, or no forking here: "
+            "geoshape.parallel.can_run_beside), one BLAS thread")
 
 
 def env_prefix() -> str:

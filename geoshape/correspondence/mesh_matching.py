@@ -152,6 +152,10 @@ class PreparedMesh:
             return self._cache[min(best)].leading(k)
         return self.cached(("laplacian", k), lambda: laplacian_basis(self.V, self.F, k, name=self.name))
 
+    def has_laplacian(self, k: int) -> bool:
+        """Whether :meth:`laplacian` ``(k)`` is already cached (no eigen-solve)."""
+        return any(key[0] == "laplacian" and key[1] >= k for key in self._cache)
+
     def descriptor_operators(self, k: int, lb_k: int):
         """Wave kernel signature operators in the first ``k`` of ``lb_k`` eigenvectors, cached."""
         from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_operators

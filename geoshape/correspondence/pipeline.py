@@ -523,7 +523,8 @@ def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
     from geoshape.parallel import beside
 
     half = (len(candidates) + 1) // 2
-    with beside(lambda: [refine_map(ctx, c.coarse_map, options) for c in candidates[half:]]) as side:
+    with beside(lambda: [refine_map(ctx, c.coarse_map, options) for c in candidates[half:]],
+                fork=half < len(candidates)) as side:
         for c in candidates[:half]:
             _refine_into(ctx, c, c.coarse_map, options)
         for c, refined in zip(candidates[half:], side.result(), strict=True):
@@ -934,7 +935,9 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     # the screening beside the other half, half the refinements beside the others; the same
     # maps whether or not they do
     k = final_basis_size(m1, m2, options)
-    with beside(_with_new_caches, _eigenpairs, (m1,), m1, k) as basis1:
+    # a child only for an eigen-solve still to do, on a mesh other than mesh 2 (self-matches)
+    solve_beside = m1 is not m2 and not m1.has_laplacian(k)
+    with beside(_with_new_caches, _eigenpairs, (m1,), m1, k, fork=solve_beside) as basis1:
         t = time.perf_counter()
         m2.laplacian(k)
         timings["eigenpairs"] = time.perf_counter() - t
