@@ -739,4 +739,4 @@ def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     ...     total.result()
     6
     """
-    return Beside(lambda: fn(*args, **kwargs), fork=None if fork is None or fork else False)
+    return Beside(lambda: fn(*args, **kwargs), fork=None if fork is not False else False)

@@ -5,7 +5,8 @@
 
 1. :func:`candidate_alignments` — spectral embeddings and the signed eigenvector orders;
 2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
-3. :func:`screen` — each order warped by TPS-ICP and run through a coarse ZoomOut, then
+3. :func:`coarse_candidates` and :func:`measure_coarse_distortion` — each order warped by
+   TPS-ICP and run through a coarse ZoomOut, then
    ranked by :func:`screening_score` (the decision objective on the coarse maps);
 4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus
    :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion`,
@@ -424,20 +425,9 @@ def coarse_orientation(ctx: PairContext, c: Candidate) -> float:
     return c.orientation
 
 
-def screen(ctx: PairContext, alignments: list, options: GeoshapeOptions, timings: dict) -> list[Candidate]:
-    """Stage 3: one :class:`Candidate` per alignment, in the same order, with its coarse map,
-    ``zoomout_energy`` and ``coarse_distortion``: :func:`coarse_candidates`, then
-    :func:`measure_coarse_distortion`.
-    """
-    t = time.perf_counter()
-    candidates = coarse_candidates(ctx, alignments, options)
-    measure_coarse_distortion(ctx, candidates, options)
-    timings["screening"] = timings.get("screening", 0.0) + time.perf_counter() - t
-    return candidates
-
-
 def coarse_candidates(ctx: PairContext, alignments: list, options: GeoshapeOptions) -> list[Candidate]:
-    """One :class:`Candidate` per alignment with its coarse map and ``zoomout_energy``:
+    """Stage 3 (screening, with :func:`measure_coarse_distortion`): one :class:`Candidate` per
+    alignment, in the same order, with its coarse map and ``zoomout_energy``:
     TPS-ICP O(iter c^3) on ``n_controls`` controls, then ZoomOut ``zoomout_start`` →
     ``screen_k`` on ``screen_samples`` samples O(iter s^2 k) (the thesis' L2 reordering cost
     alone often ranks the right signed order only 5th–15th)."""
