@@ -105,6 +105,25 @@ def test_laplacian_of_fewer_pairs_is_a_view_of_the_larger_solve():
     assert np.array_equal(small.evals, big.evals[:12])
 
 
+def test_cache_entries_hand_new_entries_of_the_asked_kinds_to_another_copy():
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+
+    V, _, F = figure()
+    m, copy = PreparedMesh(V, F), PreparedMesh(V, F)
+    m.laplacian(10)
+    since = m.cache_keys()
+    m.laplacian(20), m.samples(50)
+    new = m.cache_entries(("laplacian",), since)
+    assert list(new) == [("laplacian", 20)]  # not the older solve, not the samples
+    copy.add_cache_entries(new)
+    assert copy.has_laplacian(20) and not copy.has_laplacian(21)
+    assert copy.laplacian(20).evecs is m.laplacian(20).evecs
+    kept = copy.laplacian(20)
+    copy.add_cache_entries(PreparedMesh(V, F).cache_entries(("laplacian",)))  # nothing to add
+    copy.add_cache_entries({("laplacian", 20): None})  # an entry already cached is kept
+    assert copy.laplacian(20) is kept
+
+
 def test_final_zoomout_keeps_an_exact_map_and_can_be_turned_off():
     V, _, F = figure()
     rng = np.random.default_rng(11)

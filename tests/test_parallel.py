@@ -181,6 +181,37 @@ def test_beside_runs_in_another_process_and_returns_the_value():
     assert value == 49 and pid != os.getpid()
 
 
+@pytest.mark.parametrize("enabled", [True, False])
+@pytest.mark.parametrize("n", [0, 1, 2, 5])
+@pytest.mark.usefixtures("no_other_threads")
+def test_map_beside_returns_every_value_in_order_whether_or_not_it_forks(enabled, n):
+    import os
+
+    from geoshape.parallel import map_beside, stage_processes
+
+    with stage_processes(enabled):
+        out = map_beside(_pid_and_square, range(n))
+    assert [value for _, value in out] == [x * x for x in range(n)]
+    pids = {pid for pid, _ in out}
+    forked = enabled and n >= 2 and _forkable_here()
+    assert (len(pids) == 2) == forked and (not out or os.getpid() in pids)
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_map_beside_reraises_an_error_of_either_half(enabled):
+    from geoshape.parallel import map_beside, stage_processes
+
+    def check(x):
+        if x < 0:
+            raise InvalidOptionError(f"item {x}: must not be negative")
+        return x
+
+    with stage_processes(enabled):
+        for items in ([-1, 2, 3, 4], [1, 2, 3, -4]):
+            with pytest.raises(InvalidOptionError, match=r"item -\d: must not be negative"):
+                map_beside(check, items)
+
+
 def test_beside_runs_here_when_stage_processes_are_off():
     import os
 

@@ -128,6 +128,20 @@ class PreparedMesh:
             self._cache[key] = compute()
         return self._cache[key]
 
+    def cache_keys(self) -> frozenset:
+        """The keys cached so far (to pass to :meth:`cache_entries` as ``since``)."""
+        return frozenset(self._cache)
+
+    def cache_entries(self, kinds: tuple[str, ...], since: frozenset = frozenset()) -> dict:
+        """The cached entries whose kind (first key item) is in ``kinds`` and whose key is not in
+        ``since``: what a stage run in another process computed, to hand back with its result."""
+        return {key: value for key, value in self._cache.items() if key[0] in kinds and key not in since}
+
+    def add_cache_entries(self, entries: dict) -> None:
+        """Store :meth:`cache_entries` of a copy of this mesh; entries already cached are kept."""
+        for key, value in entries.items():
+            self._cache.setdefault(key, value)
+
     def solver(self, method: str = "graph"):
         from geoshape.geometry.geodesics import GeodesicSolver
 

@@ -338,19 +338,16 @@ _SHARED_CACHES = ("laplacian", "descriptor_operators")
 def _with_new_caches(fn, meshes: tuple, *args):
     """``(fn(*args), entries)``: also the :data:`_SHARED_CACHES` entries ``fn`` added to each
     mesh's cache, so that a forked stage's eigen-solves and operators reach the parent."""
-    before = [set(m._cache) for m in meshes]
+    before = [m.cache_keys() for m in meshes]
     value = fn(*args)
-    entries = [{key: m._cache[key] for key in m._cache if key not in seen and key[0] in _SHARED_CACHES}
-               for m, seen in zip(meshes, before, strict=True)]
-    return value, entries
+    return value, [m.cache_entries(_SHARED_CACHES, since) for m, since in zip(meshes, before, strict=True)]
 
 
 def _joined(stage, meshes: tuple):
     """The value of a :func:`_with_new_caches` stage, its cache entries stored in ``meshes``."""
     value, entries = stage.result()
     for m, new in zip(meshes, entries, strict=True):
-        for key, entry in new.items():
-            m.cached(key, lambda entry=entry: entry)
+        m.add_cache_entries(new)
     return value
 
 
@@ -509,16 +506,13 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
 def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
                         options: GeoshapeOptions) -> list[Candidate]:
     """:func:`_refine_into` of each candidate's coarse map, the second half
-    :func:`~geoshape.parallel.beside` the first; returns ``candidates``."""
-    from geoshape.parallel import beside
+    :func:`~geoshape.parallel.beside` the first (:func:`~geoshape.parallel.map_beside`);
+    returns ``candidates``."""
+    from geoshape.parallel import map_beside
 
-    half = (len(candidates) + 1) // 2
-    with beside(lambda: [refine_map(ctx, c.coarse_map, options) for c in candidates[half:]],
-                fork=half < len(candidates)) as side:
-        for c in candidates[:half]:
-            _refine_into(ctx, c, c.coarse_map, options)
-        for c, refined in zip(candidates[half:], side.result(), strict=True):
-            _store_refined(c, refined, options)
+    refined = map_beside(lambda c: refine_map(ctx, c.coarse_map, options), candidates)
+    for c, result in zip(candidates, refined, strict=True):
+        _store_refined(c, result, options)
     return candidates
 
 
