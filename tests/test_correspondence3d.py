@@ -178,6 +178,19 @@ def test_exhaustive_reordering_recovers_planted_permutation_and_signs(rng):
         align_embeddings(A, B, "random")
 
 
+@pytest.mark.parametrize("k", [1, 2, 3, 5])
+def test_signed_match_costs_give_every_sign_vector_in_table_order(rng, k):
+    import itertools
+
+    from geoshape.correspondence.reorder import best_match_cost
+    from geoshape.geometry._kernels import signed_match_costs
+
+    A, B = rng.standard_normal((40, k)), rng.standard_normal((33, k))
+    table = list(itertools.product((1, -1), repeat=k))
+    expected = [best_match_cost(A, B * np.array(signs, dtype=float)) for signs in table]
+    np.testing.assert_allclose(signed_match_costs(A, B), expected, rtol=1e-9)
+
+
 def test_tps_reproduces_affine_maps_and_interpolates(rng):
     X = rng.standard_normal((40, 4))
     M, t = rng.standard_normal((4, 4)), rng.standard_normal(4)

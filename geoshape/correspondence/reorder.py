@@ -5,7 +5,8 @@ mesh 2's columns (``B' = B[:, perm] * signs``) minimising the best-match cost
 ``cost = Σ_i min_j ‖A_i − B'_j‖`` (thesis §4.2.5–4.2.6). Three searches:
 
 - ``exhaustive``: all ``k! 2^k`` signed permutations (3840 for k = 5, 46080 for k = 6),
-  per permutation one compiled pass over the point pairs for all ``2^k`` sign vectors;
+  per permutation one compiled pass over the point pairs for all ``2^k`` sign vectors
+  (their signed sums grown as a tree of prefix sums);
 - ``greedy``: exhaustive on the first two columns, then each further column of ``A`` takes
   the best remaining column of ``B`` and sign — O(k^2) cost evaluations;
 - ``pairwise``: swap consecutive columns on absolute values while the cost drops, then
@@ -49,26 +50,15 @@ def best_match_cost(A: np.ndarray, B: np.ndarray) -> float:
     return float(np.sqrt(np.maximum(d2.min(axis=1), 0.0)).sum())
 
 
-def _costs_all_signs(A: np.ndarray, Bp: np.ndarray, sign_table: np.ndarray) -> np.ndarray:
-    """Best-match costs for every sign vector (rows of ``sign_table``) at once.
-
-    ``sign_table`` is ``itertools.product((1, -1), repeat=k)``: its second half is the
-    first half negated, in reverse order, and a sign vector and its negation share the
-    products ``A_ic Bp_jc`` — the compiled kernel makes one pass for both.
-    """
+def _exhaustive(A, B, n_keep):
     from geoshape.geometry._kernels import signed_match_costs
 
-    h = len(sign_table) // 2
-    costs = signed_match_costs(np.ascontiguousarray(A), np.ascontiguousarray(Bp), sign_table[:h])
-    return np.concatenate([costs[:h], costs[h:][::-1]])
-
-
-def _exhaustive(A, B, n_keep):
     k = A.shape[1]
     sign_table = np.array(list(itertools.product((1.0, -1.0), repeat=k)))
+    A = np.ascontiguousarray(A)
     results = []
     for perm in itertools.permutations(range(k)):
-        costs = _costs_all_signs(A, B[:, list(perm)], sign_table)
+        costs = signed_match_costs(A, np.ascontiguousarray(B[:, list(perm)]))
         for s in np.argsort(costs)[:n_keep]:
             results.append(Alignment(tuple(perm), tuple(int(x) for x in sign_table[s]), float(costs[s])))
     results.sort(key=lambda a: a.cost)
