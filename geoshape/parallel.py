@@ -46,7 +46,8 @@ from geoshape._options import check_choice
 from geoshape.errors import InvalidOptionError, MissingDependencyError
 
 __all__ = ["BACKENDS", "ON_ERROR", "run_map", "pairwise_matrix", "default_n_jobs", "blas_threads",
-           "single_thread_blas", "beside", "map_beside", "stage_processes", "can_run_beside"]
+           "single_thread_blas", "beside", "map_beside", "map_beside_after", "stage_processes",
+           "can_run_beside"]
 
 log = logging.getLogger(__name__)
 
@@ -742,17 +743,83 @@ def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     return Beside(lambda: fn(*args, **kwargs), fork=None if fork is not False else False)
 
 
+
+#: items of one :func:`map_beside` handed out through its pipe of 4-byte tokens at most (a
+#: pipe holds 64 KiB on Linux; longer lists are handed out in as many runs of items)
+_MAX_TOKENS = 16384
+
+
+def _token_pipe(n: int) -> int:
+    """The read end of a pipe holding the numbers ``0 … n−1`` as 4-byte tokens, its write end
+    closed, so that reading returns the next token or ``b""`` once every one was taken."""
+    read_fd, write_fd = os.pipe()
+    try:
+        os.write(write_fd, np.arange(n, dtype="<u4").tobytes())
+    finally:
+        os.close(write_fd)
+    return read_fd
+
+
+def _take(fd: int) -> int | None:
+    """The next token of :func:`_token_pipe`, None when none is left. Every read asks for
+    one whole token and the pipe never holds a partial one, so two processes reading the
+    same pipe each get whole, distinct tokens (Linux reads a pipe under its lock)."""
+    data = os.read(fd, 4)
+    while data and len(data) < 4:  # not expected; a short read is completed, never split
+        more = os.read(fd, 4 - len(data))
+        if not more:
+            break
+        data += more
+    return int.from_bytes(data, "little") if len(data) == 4 else None
+
+
+def _take_runs(fd: int, runs: list[range], fn: Callable, items: Sequence) -> dict:
+    """``{index: fn(items[index])}`` for every run of indices taken from ``fd`` until none is left."""
+    done = {}
+    while (token := _take(fd)) is not None:
+        for i in runs[token]:
+            done[i] = fn(items[i])
+    return done
+
+
+def map_beside_after(first: Callable[[], Any] | None, fn: Callable[[Any], Any], items: Sequence, *,
+                     here: Callable[[Any], Any] | None = None) -> tuple[Any, list]:
+    """``(first(), [fn(x) for x in items])`` computed by this process and a child
+    :func:`beside` it together. The child runs ``first`` (None: nothing), then both take the
+    next item nobody has taken yet (a token read from one pipe) until none is left, so the
+    work balances itself whatever each item and ``first`` cost. ``here`` replaces ``fn``
+    for the items this process takes (e.g. ``fn`` plus a step whose caches should stay in
+    this process); it must return the same value as ``fn`` for the result to be the same.
+
+    Without a child (:func:`can_run_beside` false, fewer than two items and no ``first``)
+    everything runs here in item order. Items of a child that dies before it answers are
+    computed here. The result never depends on who computed what. O(len(items)) tokens.
+    """
+    items = list(items)
+    here = fn if here is None else here
+    per_run = max(1, -(-len(items) // _MAX_TOKENS))
+    runs = [range(a, min(a + per_run, len(items))) for a in range(0, len(items), per_run)]
+    fd = _token_pipe(len(runs))
+    try:
+        def child():
+            return (first() if first is not None else None), _take_runs(fd, runs, fn, items)
+
+        fork = None if (len(items) >= 2 or first is not None) else False
+        with beside(child, fork=fork) as side:
+            done = _take_runs(fd, runs, here, items)
+            first_value, done_beside = side.result()
+    finally:
+        os.close(fd)
+    done.update(done_beside)
+    return first_value, [done[i] if i in done else here(x) for i, x in enumerate(items)]
+
+
 def map_beside(fn: Callable[[Any], Any], items: Sequence) -> list:
-    """``[fn(x) for x in items]``, the second half computed :func:`beside` the first (in a
-    forked child when :func:`can_run_beside`, else here); the same list either way. For a
-    few costly, independent steps of one job, e.g. refining several candidate maps.
-    No child for fewer than two items.
+    """``[fn(x) for x in items]``, shared with a child :func:`beside` this process (each takes
+    the next item left; :func:`map_beside_after` without ``first``); the same list either
+    way. For a few costly, independent steps of one job, e.g. refining candidate maps.
 
     >>> map_beside(abs, [-1, 2, -3])
     [1, 2, 3]
     """
-    items = list(items)
-    half = (len(items) + 1) // 2
-    with beside(lambda: [fn(x) for x in items[half:]], fork=None if half < len(items) else False) as side:
-        first = [fn(x) for x in items[:half]]
-        return first + side.result()
+    return map_beside_after(None, fn, items)[1]

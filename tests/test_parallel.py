@@ -192,9 +192,51 @@ def test_map_beside_returns_every_value_in_order_whether_or_not_it_forks(enabled
     with stage_processes(enabled):
         out = map_beside(_pid_and_square, range(n))
     assert [value for _, value in out] == [x * x for x in range(n)]
-    pids = {pid for pid, _ in out}
-    forked = enabled and n >= 2 and _forkable_here()
-    assert (len(pids) == 2) == forked and (not out or os.getpid() in pids)
+    if not enabled:
+        assert all(pid == os.getpid() for pid, _ in out)
+
+
+@pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
+@pytest.mark.usefixtures("no_other_threads")
+def test_map_beside_after_shares_the_items_with_a_child_that_runs_first_before():
+    import os
+    import select
+
+    from geoshape.parallel import map_beside_after
+
+    read_fd, write_fd = os.pipe()
+
+    def child_item(x):  # the child says it has taken an item
+        os.write(write_fd, b"x")
+        return os.getpid(), x * x
+
+    def here_item(x):  # this process holds its first item until the child has taken the other
+        assert select.select([read_fd], [], [], 60)[0], "the child never took an item"
+        return os.getpid(), x * x
+
+    try:
+        first, out = map_beside_after(os.getpid, child_item, [3, 4], here=here_item)
+    finally:
+        os.close(read_fd), os.close(write_fd)
+    assert [value for _, value in out] == [9, 16]
+    assert first != os.getpid() and {pid for pid, _ in out} == {os.getpid(), first}
+
+
+@pytest.mark.usefixtures("no_other_threads")
+def test_map_beside_after_computes_here_what_a_killed_child_took():
+    import os
+    import signal
+
+    from geoshape.parallel import map_beside_after
+
+    def dies(x):
+        if os.getpid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return x + 1
+
+    parent = os.getpid()
+    first, out = map_beside_after(None, dies, range(6))
+    assert first is None and out == [1, 2, 3, 4, 5, 6]
 
 
 @pytest.mark.parametrize("enabled", [True, False])

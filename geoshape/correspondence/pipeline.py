@@ -362,15 +362,43 @@ def _eigenpairs_and_embedding(m: PreparedMesh, k: int, options: GeoshapeOptions)
     return time.perf_counter() - t
 
 
-def _descriptor_and_coarse(ctx: PairContext, alignments: list, options: GeoshapeOptions):
-    """``(descriptor candidates, coarse candidates, timings)``: :func:`descriptor_candidates`
-    and :func:`coarse_candidates` of ``alignments``, the share of stages 3–4b run beside the others."""
+def _descriptor_candidates_timed(ctx: PairContext, options: GeoshapeOptions) -> tuple[list, dict]:
+    """``(descriptor candidates, timings)``: :func:`descriptor_candidates`, run beside the screening."""
     timings: dict = {}
-    described = descriptor_candidates(ctx, options, timings)
+    return descriptor_candidates(ctx, options, timings), timings
+
+
+def screen_beside_descriptors(ctx: PairContext, alignments: list, options: GeoshapeOptions,
+                              timings: dict) -> tuple[list[Candidate], list[Candidate]]:
+    """Stages 3 and 4b together: ``(screened, descriptor candidates)``. A child
+    (:func:`~geoshape.parallel.map_beside_after`) computes the descriptor candidates, then
+    joins this process in taking the next alignment left for :func:`coarse_candidate`;
+    this process also measures the coarse distortion of its own as it goes (Dijkstra rows
+    stay cached here), then of the child's. The same candidates whoever computes them."""
+    from geoshape.parallel import map_beside_after
+
     t = time.perf_counter()
-    coarse = coarse_candidates(ctx, alignments, options)
+    controls = screening_controls(ctx, options)
+
+    def coarse(a):
+        return coarse_candidate(ctx, a, controls, options)
+
+    def coarse_and_distortion(a):
+        c = coarse(a)
+        measure_coarse_distortion(ctx, [c], options)
+        return c
+
+    meshes = (ctx.m1, ctx.m2)
+    first, screened = map_beside_after(
+        lambda: _with_new_caches(_descriptor_candidates_timed, meshes, ctx, options),
+        coarse, alignments, here=coarse_and_distortion)
+    (described, side_timings), entries = first
+    for m, new in zip(meshes, entries, strict=True):
+        m.add_cache_entries(new)
+    measure_coarse_distortion(ctx, [c for c in screened if c.coarse_distortion is None], options)
     timings["screening"] = time.perf_counter() - t
-    return described, coarse, timings
+    timings.update({f"{key} (beside)": value for key, value in side_timings.items()})
+    return screened, described
 
 
 def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarray, options: GeoshapeOptions,
@@ -428,30 +456,39 @@ def coarse_orientation(ctx: PairContext, c: Candidate) -> float:
 
 def coarse_candidates(ctx: PairContext, alignments: list, options: GeoshapeOptions) -> list[Candidate]:
     """Stage 3 (screening, with :func:`measure_coarse_distortion`): one :class:`Candidate` per
-    alignment, in the same order, with its coarse map and ``zoomout_energy``:
-    TPS-ICP O(iter c^3) on ``n_controls`` controls, then ZoomOut ``zoomout_start`` →
-    ``screen_k`` on ``screen_samples`` samples O(iter s^2 k) (the thesis' L2 reordering cost
-    alone often ranks the right signed order only 5th–15th)."""
-    from geoshape.correspondence.fmaps.zoomout import zoomout
+    alignment, in the same order, with its coarse map and ``zoomout_energy``
+    (:func:`coarse_candidate` of each, with :func:`screening_controls` found once)."""
+    controls = screening_controls(ctx, options)
+    return [coarse_candidate(ctx, a, controls, options) for a in alignments]
+
+
+def screening_controls(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray:
+    """The ``n_controls`` thin-plate-spline controls of mesh 2's embedding: the same for every
+    signed order (farthest-point distances are invariant to it). O(n2 · n_controls · k)."""
     from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
+    return euclidean_farthest_point_sampling(ctx.B, options.n_controls, options.seed)
+
+
+def coarse_candidate(ctx: PairContext, a: Alignment, controls: np.ndarray,
+                     options: GeoshapeOptions) -> Candidate:
+    """The coarse map of one alignment: TPS-ICP O(iter c^3) on the ``controls``, then ZoomOut
+    ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples O(iter s^2 k) (the thesis'
+    L2 reordering cost alone often ranks the right signed order only 5th–15th)."""
+    from geoshape.correspondence.fmaps.zoomout import zoomout
+
     A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
-    # the controls of B do not depend on the signed order (FPS distances are invariant);
-    # on large meshes they are matched against the refinement samples of A only
-    controls = euclidean_farthest_point_sampling(B, options.n_controls, options.seed)
+    # on large meshes the controls are matched against the refinement samples of A only
     A_targets = A[ctx.s1] if large else A
-    candidates = []
-    for a in alignments:
-        warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=options.icp_iterations, controls=controls,
-                               seed=options.seed, return_transform=True)
-        init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
-        # large meshes keep the map on the samples; otherwise every vertex of mesh 1 is
-        # mapped onto the samples of mesh 2
-        coarse, energy = zoomout(ctx.b1, ctx.b2, init, k_start=min(options.zoomout_start, ctx.screen_k),
-                                 k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
-                                 return_energy=True, samples_only=large, final_on_samples=not large)
-        candidates.append(Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy))
-    return candidates
+    warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=options.icp_iterations, controls=controls,
+                           seed=options.seed, return_transform=True)
+    init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
+    # large meshes keep the map on the samples; otherwise every vertex of mesh 1 is mapped
+    # onto the samples of mesh 2
+    coarse, energy = zoomout(ctx.b1, ctx.b2, init, k_start=min(options.zoomout_start, ctx.screen_k),
+                             k_end=ctx.screen_k, step=options.zoomout_step, samples1=c1, samples2=c2,
+                             return_energy=True, samples_only=large, final_on_samples=not large)
+    return Candidate(source="spectral", alignment=a, coarse_map=coarse, zoomout_energy=energy)
 
 
 def measure_coarse_distortion(ctx: PairContext, candidates: list[Candidate],
@@ -917,11 +954,10 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     from geoshape.parallel import beside
 
     timings: dict = {}
-    meshes = (m1, m2)
     # independent stages run beside each other on a second core (parallel.beside): mesh 1's
-    # eigen-solve and embedding beside mesh 2's, the descriptor map and half
-    # the screening beside the other half, half the refinements beside the others; the same
-    # maps whether or not they do
+    # eigen-solve and embedding beside mesh 2's; the descriptor map beside the screening,
+    # then both processes take the alignments left to screen and the refinements left to do
+    # (parallel.map_beside_after); the same maps whether or not they do
     k = final_basis_size(m1, m2, options)
     # a child only for an eigen-solve still to do, on a mesh other than mesh 2 (self-matches)
     solve_beside = m1 is not m2 and not m1.has_laplacian(k)
@@ -936,21 +972,8 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         timings["eigenpairs (beside)"] = _joined(basis1, (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)
-    # beside: the descriptor map and the coarse maps of the second half of the alignments;
-    # here: the first half's coarse maps and distortion, then the second half's distortion
-    # (Dijkstra rows stay cached in this process)
-    half = len(alignments) // 2
-    with beside(_with_new_caches, _descriptor_and_coarse, meshes, ctx, alignments[half:], options) as side:
-        t = time.perf_counter()
-        screened = coarse_candidates(ctx, alignments[:half], options)
-        measure_coarse_distortion(ctx, screened, options)
-        timings["screening"] = time.perf_counter() - t
-        descriptor_maps, coarse_beside, side_timings = _joined(side, meshes)
-    t = time.perf_counter()
-    measure_coarse_distortion(ctx, coarse_beside, options)
-    timings["screening"] += time.perf_counter() - t
-    timings.update({f"{key} (beside)": value for key, value in side_timings.items()})
-    ranked = sorted(screened + coarse_beside, key=screening_score)
+    screened, descriptor_maps = screen_beside_descriptors(ctx, alignments, options, timings)
+    ranked = sorted(screened, key=screening_score)
     refined = refine(ctx, ranked, options, timings)
     refined += descriptor_maps
     measure_distortion(ctx, refined, options, timings)
