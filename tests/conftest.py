@@ -39,3 +39,12 @@ def grid_mesh(nx: int = 10, ny: int = 10, size: float = 1.0):
     a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
     F = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
     return V, F.astype(np.int64)
+
+
+@pytest.fixture
+def no_other_threads(monkeypatch):
+    """Threads left by earlier tests (a Dask client, pools) make beside refuse to fork; these
+    tests check the forked path itself, so they ignore them (the refusal has its own test)."""
+    import geoshape.parallel
+
+    monkeypatch.setattr(geoshape.parallel, "_other_threads", lambda: [])

@@ -178,6 +178,13 @@ def test_exhaustive_reordering_recovers_planted_permutation_and_signs(rng):
         align_embeddings(A, B, "random")
 
 
+@pytest.mark.usefixtures("no_other_threads")
+def test_exhaustive_reordering_shared_with_a_second_core_finds_the_same_alignments(rng):
+    A, B = rng.standard_normal((120, 5)), rng.standard_normal((110, 5))
+    alone = align_embeddings(A, B, "exhaustive", n_keep=8)
+    assert align_embeddings(A, B, "exhaustive", n_keep=8, beside=True) == alone
+
+
 @pytest.mark.parametrize("k", [1, 2, 3, 5])
 def test_signed_match_costs_give_every_sign_vector_in_table_order(rng, k):
     import itertools

@@ -152,17 +152,6 @@ def _forkable_here() -> bool:
         return sys.platform.startswith("linux") and len(__import__("os").sched_getaffinity(0)) >= 2
 
 
-@pytest.fixture
-def no_other_threads(monkeypatch):
-    """Threads left by earlier tests (a Dask client, pools) make beside refuse to fork; these
-    tests check the forked path itself, so they ignore them (the refusal has its own test)."""
-    import geoshape.parallel
-
-    monkeypatch.setattr(geoshape.parallel, "_other_threads", lambda: [])
-
-
-
-
 def _pid_and_square(x):
     import os
 

@@ -279,7 +279,8 @@ def spectral_alignments(m1: PreparedMesh, m2: PreparedMesh, *, k, scaling, reord
     """Both meshes' spectral embeddings and the cheapest signed column orders of mesh 2's.
 
     Returns ``(A (n1, k), B (n2, k), alignments)``, cheapest first (``n_keep`` of them).
-    Nyström embeddings O(l n log n); exhaustive reordering O(k! 2^k s^2) on s = 300 samples.
+    Nyström embeddings O(l n log n); exhaustive reordering O(k! 2^k s^2) on s = 200 samples
+    (shared with a second core).
     Shared by every spectral method (``jz``, ``shapiro-brady``, ``improved-sb``).
     """
     t = time.perf_counter()
@@ -287,7 +288,7 @@ def spectral_alignments(m1: PreparedMesh, m2: PreparedMesh, *, k, scaling, reord
     e2 = m2.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
     timings["embedding"] = timings.get("embedding", 0.0) + time.perf_counter() - t
     t = time.perf_counter()
-    alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed)
+    alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed, beside=True)
     timings["reorder"] = time.perf_counter() - t
     return e1.coords, e2.coords, alignments
 

@@ -50,17 +50,22 @@ def best_match_cost(A: np.ndarray, B: np.ndarray) -> float:
     return float(np.sqrt(np.maximum(d2.min(axis=1), 0.0)).sum())
 
 
-def _exhaustive(A, B, n_keep):
+def _exhaustive(A, B, n_keep, beside=False):
     from geoshape.geometry._kernels import signed_match_costs
+    from geoshape.parallel import map_beside
 
     k = A.shape[1]
     sign_table = np.array(list(itertools.product((1.0, -1.0), repeat=k)))
     A = np.ascontiguousarray(A)
-    results = []
-    for perm in itertools.permutations(range(k)):
+    perms = list(itertools.permutations(range(k)))
+
+    def cheapest(perm):  # the n_keep cheapest sign vectors of one column order
         costs = signed_match_costs(A, np.ascontiguousarray(B[:, list(perm)]))
-        for s in np.argsort(costs)[:n_keep]:
-            results.append(Alignment(tuple(perm), tuple(int(x) for x in sign_table[s]), float(costs[s])))
+        return [Alignment(tuple(perm), tuple(int(x) for x in sign_table[s]), float(costs[s]))
+                for s in np.argsort(costs)[:n_keep]]
+
+    per_perm = map_beside(cheapest, perms) if beside else [cheapest(perm) for perm in perms]
+    results = [a for alignments in per_perm for a in alignments]
     results.sort(key=lambda a: a.cost)
     return results[:n_keep]
 
@@ -123,7 +128,7 @@ def _pairwise(A, B, n_keep, swaps: bool = True):
 
 
 def align_embeddings(A, B, method: str = "exhaustive", *, n_keep: int = 2,
-                     max_points: int = 200, seed: int = 0) -> list[Alignment]:
+                     max_points: int = 200, seed: int = 0, beside: bool = False) -> list[Alignment]:
     """Find the signed column permutations of ``B`` that best match ``A``.
 
     Parameters
@@ -138,6 +143,10 @@ def align_embeddings(A, B, method: str = "exhaustive", *, n_keep: int = 2,
         typically the two mirror-symmetric solutions of a symmetric shape).
     max_points : int
         Cost evaluated on this many farthest-point samples of each embedding.
+    beside : bool
+        ``exhaustive``: share the column orders with a second core
+        (:func:`geoshape.parallel.map_beside`; the same result), worth it for one large
+        search, not inside a loop over many small ones.
 
     Returns
     -------
@@ -161,7 +170,7 @@ def align_embeddings(A, B, method: str = "exhaustive", *, n_keep: int = 2,
     if method == "none":
         return [Alignment(tuple(range(k)), (1,) * k, best_match_cost(A_s, B_s))]
     if method == "exhaustive":
-        return _exhaustive(A_s, B_s, n_keep)
+        return _exhaustive(A_s, B_s, n_keep, beside)
     if method == "greedy":
         return _greedy(A_s, B_s, n_keep)
     return _pairwise(A_s, B_s, n_keep, swaps=method == "pairwise")
