@@ -935,6 +935,12 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     return p2p
 
 
+def _full_resolution_timed(ctx: PairContext, chosen: Candidate, options: GeoshapeOptions) -> tuple:
+    """``(p2p_12, timings)`` of :func:`full_resolution` (run beside the last candidates)."""
+    timings: dict = {}
+    return full_resolution(ctx, chosen, options, timings), timings
+
+
 def alternatives(ranked: list[Candidate], refined: list[Candidate]) -> list[dict]:
     """``Correspondence.alternatives``: every screened candidate by :func:`screening_score`, then
     every refined candidate that is not a signed order (descriptor maps, the orientation
@@ -978,20 +984,30 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     refined = refine(ctx, ranked, options, timings)
     refined += descriptor_maps
     measure_distortion(ctx, refined, options, timings)
-    repaired = orientation_repair(ctx, refined, options, timings)
-    measure_distortion(ctx, repaired, options, timings)
-    refined += repaired
-    completed = complete_symmetry(ctx, refined, options, timings)
-    if completed is not None:
-        measure_distortion(ctx, [completed], options, timings)
-        refined.append(completed)
-    chosen = decide(refined, options)
+    # the repair and the symmetry completion only add candidates, and mostly the decision
+    # stays with the best map so far: its full-resolution map is computed beside them (a
+    # child only when a map has the unwanted orientation, i.e. when they can run at all)
+    likely = decide(refined, options)
+    with beside(_full_resolution_timed, ctx, likely, options,
+                fork=None if any(c.unwanted for c in refined) else False) as final_likely:
+        repaired = orientation_repair(ctx, refined, options, timings)
+        measure_distortion(ctx, repaired, options, timings)
+        refined += repaired
+        completed = complete_symmetry(ctx, refined, options, timings)
+        if completed is not None:
+            measure_distortion(ctx, [completed], options, timings)
+            refined.append(completed)
+        chosen = decide(refined, options)
+        if chosen is likely:
+            p2p, final_timings = final_likely.result()
+            timings.update(final_timings)
     details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed),
                "source": chosen.source, "distortion": chosen.distortion,
                "decision_score": decision_score(chosen), "candidates": refined,
                "chosen_index": next(i for i, c in enumerate(refined) if c is chosen),
                "candidate_rows": ctx.s1 if ctx.large else None}
-    p2p = full_resolution(ctx, chosen, options, timings)
+    if chosen is not likely:
+        p2p = full_resolution(ctx, chosen, options, timings)
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,
                           alternatives(ranked, refined), timings, details)
