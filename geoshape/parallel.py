@@ -552,6 +552,8 @@ def pairwise_matrix(
 _STAGE_SETTING = threading.local()
 #: environment switch: ``GEOSHAPE_STAGE_PROCESSES=0`` runs every stage in this process
 STAGE_PROCESSES_ENV = "GEOSHAPE_STAGE_PROCESSES"
+#: children of :func:`beside` forked by this process and not yet reaped (one slot, mutable)
+_LIVE_CHILDREN = [0]
 
 
 @contextlib.contextmanager
@@ -576,11 +578,14 @@ def _other_threads() -> list:
 def can_run_beside() -> bool:
     """Whether :func:`beside` forks: on Linux, from the main thread of a non-daemon process
     with no other live thread (a lock held by another thread at the fork would stay held in
-    the child) and at least two usable cores, unless :func:`stage_processes` (``False``) or
-    ``GEOSHAPE_STAGE_PROCESSES=0`` says not to."""
+    the child), no child of an earlier :func:`beside` still running (two processes for two
+    cores: a stage nested in another runs here) and at least two usable cores, unless
+    :func:`stage_processes` (``False``) or ``GEOSHAPE_STAGE_PROCESSES=0`` says not to."""
     import multiprocessing
 
     if not getattr(_STAGE_SETTING, "enabled", True) or os.environ.get(STAGE_PROCESSES_ENV, "1") == "0":
+        return False
+    if _LIVE_CHILDREN[0]:
         return False
     if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
         return False  # macOS: fork is unsafe with system frameworks; Windows: none
@@ -639,6 +644,7 @@ class Beside:
         if pid == 0:
             self._child(read_fd, write_fd, parent)
         self._pid, self._fd = pid, read_fd
+        _LIVE_CHILDREN[0] += 1
         os.close(write_fd)
         return True
 
@@ -692,6 +698,7 @@ class Beside:
     def _reap(self) -> int | None:
         """Wait for the child; its wait status (None if something else reaped it)."""
         pid, self._pid = self._pid, None
+        _LIVE_CHILDREN[0] -= 1
         try:
             return os.waitpid(pid, 0)[1]
         except ChildProcessError:  # SIGCHLD ignored, or another child watcher was first

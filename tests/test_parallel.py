@@ -243,6 +243,24 @@ def test_map_beside_reraises_an_error_of_either_half(enabled):
                 map_beside(check, items)
 
 
+@pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
+@pytest.mark.usefixtures("no_other_threads")
+def test_a_stage_nested_in_a_running_beside_runs_here():
+    import os
+
+    from geoshape.parallel import beside, can_run_beside
+
+    with beside(_pid_and_square, 2) as outer:
+        assert not can_run_beside()  # one child at a time: two processes for two cores
+        with beside(_pid_and_square, 3) as inner:
+            assert inner.result() == (os.getpid(), 9)
+        assert outer.result()[0] != os.getpid()
+    assert can_run_beside()
+    with beside(_pid_and_square, 4) as cancelled:
+        cancelled.cancel()
+    assert can_run_beside()
+
+
 def test_beside_runs_here_when_stage_processes_are_off():
     import os
 

@@ -838,7 +838,13 @@ class _DistancesWithin:
             return _graph_distances_among(self.m, vertices)
         todo = pos[~self.known[pos]]
         if len(todo):
-            self.D[todo] = _graph_distances_among(self.m, self.within[todo], self.within)
+            from geoshape.parallel import map_beside
+
+            # blocks of 64 Dijkstra sources, shared with a second core when there are several
+            blocks = [todo[b:b + 64] for b in range(0, len(todo), 64)]
+            rows = map_beside(lambda block: _graph_distances_among(self.m, self.within[block], self.within),
+                              blocks)
+            self.D[todo] = np.vstack(rows)
             self.known[todo] = True
         return self.D[np.ix_(pos, pos)]
 
