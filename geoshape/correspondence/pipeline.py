@@ -5,11 +5,12 @@
 
 1. :func:`candidate_alignments` — spectral embeddings and the signed eigenvector orders;
 2. :func:`pair_context` — Laplace–Beltrami bases and samples of both meshes, once per pair;
-3. :func:`coarse_candidates` and :func:`measure_coarse_distortion` — each order warped by
-   TPS-ICP and run through a coarse ZoomOut, then
-   ranked by :func:`screening_score` (the decision objective on the coarse maps);
-4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus
-   :func:`descriptor_candidates` (wave kernel signatures), :func:`measure_distortion`,
+3. :func:`screen_beside_descriptors` — :func:`coarse_candidate` and
+   :func:`measure_coarse_distortion` of each order (warped by TPS-ICP, run through a coarse
+   ZoomOut), ranked by :func:`screening_score` (the decision objective on the coarse maps),
+   beside :func:`descriptor_candidates`;
+4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus the
+   descriptor candidates (wave kernel signatures), :func:`measure_distortion`,
    :func:`orientation_repair` of the best mirrored map and, when the best map is still
    mirrored, :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
@@ -455,14 +456,6 @@ def coarse_orientation(ctx: PairContext, c: Candidate) -> float:
     return c.orientation
 
 
-def coarse_candidates(ctx: PairContext, alignments: list, options: GeoshapeOptions) -> list[Candidate]:
-    """Stage 3 (screening, with :func:`measure_coarse_distortion`): one :class:`Candidate` per
-    alignment, in the same order, with its coarse map and ``zoomout_energy``
-    (:func:`coarse_candidate` of each, with :func:`screening_controls` found once)."""
-    controls = screening_controls(ctx, options)
-    return [coarse_candidate(ctx, a, controls, options) for a in alignments]
-
-
 def screening_controls(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray:
     """The ``n_controls`` thin-plate-spline controls of mesh 2's embedding: the same for every
     signed order (farthest-point distances are invariant to it). O(n2 · n_controls · k)."""
@@ -473,9 +466,11 @@ def screening_controls(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray
 
 def coarse_candidate(ctx: PairContext, a: Alignment, controls: np.ndarray,
                      options: GeoshapeOptions) -> Candidate:
-    """The coarse map of one alignment: TPS-ICP O(iter c^3) on the ``controls``, then ZoomOut
-    ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples O(iter s^2 k) (the thesis'
-    L2 reordering cost alone often ranks the right signed order only 5th–15th)."""
+    """Stage 3 (screening, with :func:`measure_coarse_distortion`): the :class:`Candidate` of
+    one alignment with its coarse map and ``zoomout_energy``: TPS-ICP O(iter c^3) on the
+    ``controls``, then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples
+    O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed order
+    only 5th–15th)."""
     from geoshape.correspondence.fmaps.zoomout import zoomout
 
     A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
