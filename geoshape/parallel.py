@@ -750,7 +750,6 @@ def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     return Beside(lambda: fn(*args, **kwargs), fork=None if fork is not False else False)
 
 
-
 #: items of one :func:`map_beside` handed out through its pipe of 4-byte tokens at most (a
 #: pipe holds 64 KiB on Linux; longer lists are handed out in as many runs of items)
 _MAX_TOKENS = 16384
@@ -798,9 +797,10 @@ def map_beside_after(first: Callable[[], Any] | None, fn: Callable[[Any], Any], 
     for the items this process takes (e.g. ``fn`` plus a step whose caches should stay in
     this process); it must return the same value as ``fn`` for the result to be the same.
 
-    Without a child (:func:`can_run_beside` false, fewer than two items and no ``first``)
-    everything runs here in item order. Items of a child that dies before it answers are
-    computed here. The result never depends on who computed what. O(len(items)) tokens.
+    Without a child (:func:`can_run_beside` false, or fewer than two items and no ``first``)
+    ``first`` and then every item through ``fn`` run here, in item order, before ``here``
+    gets a turn. Items of a child that dies before it answers are computed here. The result
+    never depends on who computed what. O(len(items)) tokens.
     """
     items = list(items)
     here = fn if here is None else here

@@ -347,9 +347,9 @@ def _with_new_caches(fn, meshes: tuple, *args):
     return value, [m.cache_entries(_SHARED_CACHES, since) for m, since in zip(meshes, before, strict=True)]
 
 
-def _joined(stage, meshes: tuple):
-    """The value of a :func:`_with_new_caches` stage, its cache entries stored in ``meshes``."""
-    value, entries = stage.result()
+def _adopted(outcome: tuple, meshes: tuple):
+    """The value of a :func:`_with_new_caches` outcome, its cache entries stored in ``meshes``."""
+    value, entries = outcome
     for m, new in zip(meshes, entries, strict=True):
         m.add_cache_entries(new)
     return value
@@ -394,9 +394,7 @@ def screen_beside_descriptors(ctx: PairContext, alignments: list, options: Geosh
     first, screened = map_beside_after(
         lambda: _with_new_caches(_descriptor_candidates_timed, meshes, ctx, options),
         coarse, alignments, here=coarse_and_distortion)
-    (described, side_timings), entries = first
-    for m, new in zip(meshes, entries, strict=True):
-        m.add_cache_entries(new)
+    described, side_timings = _adopted(first, meshes)
     measure_coarse_distortion(ctx, [c for c in screened if c.coarse_distortion is None], options)
     timings["screening"] = time.perf_counter() - t
     timings.update({f"{key} (beside)": value for key, value in side_timings.items()})
@@ -542,9 +540,9 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
 
 def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
                         options: GeoshapeOptions) -> list[Candidate]:
-    """:func:`_refine_into` of each candidate's coarse map, the second half
-    :func:`~geoshape.parallel.beside` the first (:func:`~geoshape.parallel.map_beside`);
-    returns ``candidates``."""
+    """:func:`_refine_into` of each candidate's coarse map, shared with a child process
+    (:func:`~geoshape.parallel.map_beside`: each takes the next candidate left); returns
+    ``candidates``."""
     from geoshape.parallel import map_beside
 
     refined = map_beside(lambda c: refine_map(ctx, c.coarse_map, options), candidates)
@@ -977,7 +975,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         t = time.perf_counter()
         m2.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
         timings["embedding"] = time.perf_counter() - t
-        timings["eigenpairs (beside)"] = _joined(basis1, (m1,))
+        timings["eigenpairs (beside)"] = _adopted(basis1.result(), (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)
     screened, descriptor_maps = screen_beside_descriptors(ctx, alignments, options, timings)
