@@ -193,20 +193,24 @@ def test_map_beside_after_shares_the_items_with_a_child_that_runs_first_before()
 
     from geoshape.parallel import map_beside_after
 
-    read_fd, write_fd = os.pipe()
+    to_child, to_parent = os.pipe(), os.pipe()
 
-    def child_item(x):  # the child says it has taken an item
-        os.write(write_fd, b"x")
-        return os.getpid(), x * x
+    def meet(say, hear):  # whoever holds an item waits until the other process holds the other one
+        os.write(say[1], b"x")
+        assert select.select([hear[0]], [], [], 60)[0], "the other process never took an item"
+        return os.getpid()
 
-    def here_item(x):  # this process holds its first item until the child has taken the other
-        assert select.select([read_fd], [], [], 60)[0], "the child never took an item"
-        return os.getpid(), x * x
+    def child_item(x):
+        return meet(to_parent, to_child), x * x
+
+    def here_item(x):
+        return meet(to_child, to_parent), x * x
 
     try:
         first, out = map_beside_after(os.getpid, child_item, [3, 4], here=here_item)
     finally:
-        os.close(read_fd), os.close(write_fd)
+        for fd in (*to_child, *to_parent):
+            os.close(fd)
     assert [value for _, value in out] == [9, 16]
     assert first != os.getpid() and {pid for pid, _ in out} == {os.getpid(), first}
 
