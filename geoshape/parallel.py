@@ -731,8 +731,8 @@ class Beside:
 
 def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     """Run ``fn(*args, **kwargs)`` on another core while the caller goes on, for a stage of one
-    job that does not depend on what the caller does meanwhile (two meshes' eigenproblems
-    while the embeddings are aligned). The child is a fork: it starts with every array and
+    job that does not depend on what the caller does meanwhile (one mesh's eigenproblem
+    while another's is solved). The child is a fork: it starts with every array and
     cache as they are now, without copying them up front (pages are copied only when one
     side writes to them), and only its result travels back (pickled through a pipe,
     O(result size)). Changes the child makes to caches stay in the child: return what the
@@ -750,14 +750,16 @@ def beside(fn: Callable, *args, fork: bool | None = None, **kwargs) -> Beside:
     return Beside(lambda: fn(*args, **kwargs), fork=None if fork is not False else False)
 
 
-#: items of one :func:`map_beside` handed out through its pipe of 4-byte tokens at most (a
-#: pipe holds 64 KiB on Linux; longer lists are handed out in as many runs of items)
-_MAX_TOKENS = 16384
+#: tokens of one :func:`map_beside_after` pipe at most: 4096 bytes, one page, which every pipe
+#: holds (Linux gives a pipe as little as one page once a user has many); longer lists are
+#: handed out in runs of several items per token
+_MAX_TOKENS = 1024
 
 
 def _token_pipe(n: int) -> int:
-    """The read end of a pipe holding the numbers ``0 … n−1`` as 4-byte tokens, its write end
-    closed, so that reading returns the next token or ``b""`` once every one was taken."""
+    """The read end of a pipe holding the numbers ``0 … n−1`` (``n`` ≤ :data:`_MAX_TOKENS`) as
+    4-byte tokens, its write end closed, so that reading returns the next token or ``b""``
+    once every one was taken."""
     read_fd, write_fd = os.pipe()
     try:
         os.write(write_fd, np.arange(n, dtype="<u4").tobytes())
@@ -767,16 +769,15 @@ def _token_pipe(n: int) -> int:
 
 
 def _take(fd: int) -> int | None:
-    """The next token of :func:`_token_pipe`, None when none is left. Every read asks for
-    one whole token and the pipe never holds a partial one, so two processes reading the
-    same pipe each get whole, distinct tokens (Linux reads a pipe under its lock)."""
+    """The next token of :func:`_token_pipe`, None when none is left. Every read asks for one
+    whole token and the pipe only ever holds whole ones, so two processes reading the same
+    pipe each get whole, distinct tokens (Linux reads a pipe under its lock)."""
     data = os.read(fd, 4)
-    while data and len(data) < 4:  # not expected; a short read is completed, never split
-        more = os.read(fd, 4 - len(data))
-        if not more:
-            break
-        data += more
-    return int.from_bytes(data, "little") if len(data) == 4 else None
+    if not data:
+        return None
+    if len(data) != 4:
+        raise RuntimeError(f"a token pipe returned {len(data)} bytes instead of 4")
+    return int.from_bytes(data, "little")
 
 
 def _take_runs(fd: int, runs: list[range], fn: Callable, items: Sequence) -> dict:
@@ -794,15 +795,19 @@ def map_beside_after(first: Callable[[], Any] | None, fn: Callable[[Any], Any], 
     :func:`beside` it together. The child runs ``first`` (None: nothing), then both take the
     next item nobody has taken yet (a token read from one pipe) until none is left, so the
     work balances itself whatever each item and ``first`` cost. ``here`` replaces ``fn``
-    for the items this process takes (e.g. ``fn`` plus a step whose caches should stay in
-    this process); it must return the same value as ``fn`` for the result to be the same.
+    for the items this process takes: ``fn`` plus a step whose caches should stay in this
+    process (e.g. a measurement stored on the item); it must return what ``fn`` returns.
 
-    Without a child (:func:`can_run_beside` false, or fewer than two items and no ``first``)
-    ``first`` and then every item through ``fn`` run here, in item order, before ``here``
-    gets a turn. Items of a child that dies before it answers are computed here. The result
-    never depends on who computed what. O(len(items)) tokens.
+    Without a child to share with (:func:`can_run_beside` false, or nothing to share: fewer
+    than two items, or no item besides ``first``) ``first`` and then every item through
+    ``fn`` run here, in item order, and an error stops at once. Items of a child that dies
+    before it answers are computed here. The result never depends on who computed what.
+    Tokens: one per item, or per run of items beyond :data:`_MAX_TOKENS`.
     """
     items = list(items)
+    shareable = len(items) >= 2 or (first is not None and len(items) >= 1)
+    if not (shareable and can_run_beside()):
+        return (first() if first is not None else None), [fn(x) for x in items]
     here = fn if here is None else here
     per_run = max(1, -(-len(items) // _MAX_TOKENS))
     runs = [range(a, min(a + per_run, len(items))) for a in range(0, len(items), per_run)]
@@ -811,8 +816,7 @@ def map_beside_after(first: Callable[[], Any] | None, fn: Callable[[Any], Any], 
         def child():
             return (first() if first is not None else None), _take_runs(fd, runs, fn, items)
 
-        fork = None if (len(items) >= 2 or first is not None) else False
-        with beside(child, fork=fork) as side:
+        with beside(child) as side:
             done = _take_runs(fd, runs, here, items)
             first_value, done_beside = side.result()
     finally:

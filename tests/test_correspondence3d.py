@@ -185,6 +185,29 @@ def test_exhaustive_reordering_shared_with_a_second_core_finds_the_same_alignmen
     assert align_embeddings(A, B, "exhaustive", n_keep=8, beside=True) == alone
 
 
+def _signed_match_costs_in_python(A, B):
+    """Every sign vector's best-match cost, summed as a plain loop over columns would: the
+    cross term of a vector with s_0 = −1 is that of its negation, added instead of subtracted."""
+    import itertools
+
+    out = []
+    for signs in itertools.product((1.0, -1.0), repeat=A.shape[1]):
+        flip = signs[0] < 0
+        s = [-x for x in signs] if flip else list(signs)
+        total = 0.0
+        for a in A:
+            best = np.inf
+            for b in B:
+                base = sum(float(v) * float(v) for v in a) + sum(float(v) * float(v) for v in b)
+                cross = 0.0
+                for c in range(len(a)):
+                    cross += s[c] * (float(a[c]) * float(b[c]))
+                best = min(best, base + 2.0 * cross if flip else base - 2.0 * cross)
+            total += np.sqrt(max(best, 0.0))
+        out.append(total)
+    return np.array(out)
+
+
 @pytest.mark.parametrize("k", [1, 2, 3, 5])
 def test_signed_match_costs_give_every_sign_vector_in_table_order(rng, k):
     import itertools
@@ -192,10 +215,14 @@ def test_signed_match_costs_give_every_sign_vector_in_table_order(rng, k):
     from geoshape.correspondence.reorder import best_match_cost
     from geoshape.geometry._kernels import signed_match_costs
 
-    A, B = rng.standard_normal((40, k)), rng.standard_normal((33, k))
+    A, B = rng.standard_normal((12, k)), rng.standard_normal((9, k))
+    costs = signed_match_costs(A, B)
     table = list(itertools.product((1, -1), repeat=k))
     expected = [best_match_cost(A, B * np.array(signs, dtype=float)) for signs in table]
-    np.testing.assert_allclose(signed_match_costs(A, B), expected, rtol=1e-9)
+    np.testing.assert_allclose(costs, expected, rtol=1e-9)
+    # and bit for bit the arithmetic of a plain loop over the columns (the exhaustive search
+    # ranks near-ties the same whichever kernel computes them)
+    np.testing.assert_array_equal(costs, _signed_match_costs_in_python(A, B))
 
 
 def test_tps_reproduces_affine_maps_and_interpolates(rng):
@@ -375,14 +402,31 @@ def test_batch_refuses_pairs_whose_map_names_collide_before_any_work(tmp_path):
     assert not any((tmp_path / "out").glob("*.txt"))
 
 
-def test_stages_beside_each_other_give_the_same_map_as_one_process():
-    from geoshape.parallel import stage_processes
+@pytest.mark.usefixtures("no_other_threads")
+def test_stages_beside_each_other_give_the_same_map_as_one_process(monkeypatch):
+    import os
 
+    from geoshape.parallel import can_run_beside, stage_processes
+
+    if not can_run_beside():
+        pytest.skip("beside forks only on Linux with 2+ cores")
+    forks = []
+    real_fork = os.fork
+
+    def counted_fork():
+        forks.append(1)
+        return real_fork()
+
+    monkeypatch.setattr(os, "fork", counted_fork)
     V1, V2, F = figure("biped")
     with stage_processes(False):
         alone = correspond(V1, F, V2, F)
+    assert not forks
     together = correspond(V1, F, V2, F)
+    assert len(forks) >= 4  # eigen-solve, reordering, screening, refinement at least
     np.testing.assert_array_equal(alone.p2p_12, together.p2p_12)
-    sources = [[c.source for c in r.details["candidates"]] for r in (alone, together)]
-    assert sources[0] == sources[1]
-    assert "eigenpairs (beside)" in together.timings
+    scores = [[(c.source, c.distortion, c.refined_energy, c.refined_orientation, c.zoomout_energy)
+               for c in r.details["candidates"]] for r in (alone, together)]
+    assert scores[0] == scores[1]  # every candidate, bit for bit
+    assert alone.details["chosen_index"] == together.details["chosen_index"]
+    assert "eigenpairs and embedding (beside)" in together.timings

@@ -144,12 +144,13 @@ def test_pairwise_asymmetric_backends(dask_client):
 # ---------------------------------------------------------------------------------------
 
 def _forkable_here() -> bool:
-    import sys
+    """Whether beside would fork in this process (other threads aside: see no_other_threads)."""
+    from unittest import mock
 
-    from geoshape.parallel import stage_processes
+    import geoshape.parallel
 
-    with stage_processes(True):
-        return sys.platform.startswith("linux") and len(__import__("os").sched_getaffinity(0)) >= 2
+    with mock.patch.object(geoshape.parallel, "_other_threads", lambda: []):
+        return geoshape.parallel.can_run_beside()
 
 
 def _pid_and_square(x):
@@ -187,7 +188,7 @@ def test_map_beside_returns_every_value_in_order_whether_or_not_it_forks(enabled
 
 @pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
 @pytest.mark.usefixtures("no_other_threads")
-def test_map_beside_after_shares_the_items_with_a_child_that_runs_first_before():
+def test_map_beside_after_shares_the_items_with_a_child_that_runs_first():
     import os
     import select
 
@@ -216,35 +217,86 @@ def test_map_beside_after_shares_the_items_with_a_child_that_runs_first_before()
 
 
 @pytest.mark.usefixtures("no_other_threads")
+@pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
+@pytest.mark.usefixtures("no_other_threads")
 def test_map_beside_after_computes_here_what_a_killed_child_took():
     import os
+    import select
     import signal
 
-    from geoshape.parallel import map_beside_after
+    from geoshape.parallel import can_run_beside, map_beside_after
 
-    def dies(x):
-        if os.getpid() != parent:
-            os.kill(os.getpid(), signal.SIGKILL)
+    took = os.pipe()
+
+    def dies(x):  # the child says it took an item, then dies without answering
+        os.write(took[1], b"x")
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    def here(x):  # this process waits until the child has taken an item
+        assert select.select([took[0]], [], [], 60)[0], "the child never took an item"
         return x + 1
 
-    parent = os.getpid()
-    first, out = map_beside_after(None, dies, range(6))
+    try:
+        first, out = map_beside_after(None, dies, range(6), here=here)
+    finally:
+        os.close(took[0]), os.close(took[1])
     assert first is None and out == [1, 2, 3, 4, 5, 6]
+    assert can_run_beside()  # the dead child was reaped
 
 
-@pytest.mark.parametrize("enabled", [True, False])
-def test_map_beside_reraises_an_error_of_either_half(enabled):
-    from geoshape.parallel import map_beside, stage_processes
+def _fails_if_negative(x):
+    if x < 0:
+        raise InvalidOptionError(f"item {x}: must not be negative")
+    return x
 
-    def check(x):
-        if x < 0:
-            raise InvalidOptionError(f"item {x}: must not be negative")
-        return x
 
-    with stage_processes(enabled):
-        for items in ([-1, 2, 3, 4], [1, 2, 3, -4]):
-            with pytest.raises(InvalidOptionError, match=r"item -\d: must not be negative"):
-                map_beside(check, items)
+def test_map_beside_without_a_child_stops_at_the_first_error():
+    from geoshape.parallel import map_beside_after, stage_processes
+
+    seen = []
+
+    def first():
+        raise InvalidOptionError("first: no descriptors")
+
+    with stage_processes(False):
+        with pytest.raises(InvalidOptionError, match="item -1: must not be negative"):
+            map_beside_after(None, lambda x: seen.append(x) or _fails_if_negative(x), [1, -1, 2])
+        assert seen == [1, -1]
+        with pytest.raises(InvalidOptionError, match="first: no descriptors"):
+            map_beside_after(first, seen.append, [3, 4])
+        assert seen == [1, -1]
+
+
+@pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
+@pytest.mark.usefixtures("no_other_threads")
+@pytest.mark.parametrize("where", ["child item", "child first", "here"])
+def test_map_beside_after_reraises_an_error_wherever_it_happens(where):
+    import os
+    import select
+
+    from geoshape.parallel import can_run_beside, map_beside_after
+
+    took = os.pipe()
+
+    def child_item(x):
+        os.write(took[1], b"x")
+        return _fails_if_negative(-x if where == "child item" else x)
+
+    def first():
+        if where == "child first":
+            os.write(took[1], b"x")
+            raise InvalidOptionError("item -0: must not be negative (first)")
+
+    def here(x):  # waits until the child has taken an item (or failed first)
+        assert select.select([took[0]], [], [], 60)[0], "the child never started"
+        return _fails_if_negative(-x if where == "here" else x)
+
+    try:
+        with pytest.raises(InvalidOptionError, match=r"item -\d: must not be negative"):
+            map_beside_after(first, child_item, [1, 2, 3], here=here)
+    finally:
+        os.close(took[0]), os.close(took[1])
+    assert can_run_beside()  # the child was reaped or killed
 
 
 @pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")

@@ -55,6 +55,8 @@ FINAL_VERTICES_PER_EIGENPAIR = 20
 PREFERENCES = ("preserving", "reversing")
 #: scaling of the spectral embedding's columns by the eigenvalues (√λ, see spectral_embedding)
 EMBEDDING_SCALING = "sqrt"
+#: Dijkstra sources per call when distances are measured: full rows of O(block n) memory
+DIJKSTRA_BLOCK = 64
 
 
 def _int(low: int, *, none: bool = False) -> dict:
@@ -364,10 +366,11 @@ def _eigenpairs_and_embedding(m: PreparedMesh, k: int, options: GeoshapeOptions)
     return time.perf_counter() - t
 
 
-def _descriptor_candidates_timed(ctx: PairContext, options: GeoshapeOptions) -> tuple[list, dict]:
-    """``(descriptor candidates, timings)``: :func:`descriptor_candidates`, run beside the screening."""
+def _timed(stage, *args) -> tuple:
+    """``(stage(*args, timings), timings)`` with a fresh ``timings`` dict: a stage run in a child
+    hands its timings back with its value."""
     timings: dict = {}
-    return descriptor_candidates(ctx, options, timings), timings
+    return stage(*args, timings), timings
 
 
 def screen_beside_descriptors(ctx: PairContext, alignments: list, options: GeoshapeOptions,
@@ -392,7 +395,7 @@ def screen_beside_descriptors(ctx: PairContext, alignments: list, options: Geosh
 
     meshes = (ctx.m1, ctx.m2)
     first, screened = map_beside_after(
-        lambda: _with_new_caches(_descriptor_candidates_timed, meshes, ctx, options),
+        lambda: _with_new_caches(_timed, meshes, descriptor_candidates, ctx, options),
         coarse, alignments, here=coarse_and_distortion)
     described, side_timings = _adopted(first, meshes)
     measure_coarse_distortion(ctx, [c for c in screened if c.coarse_distortion is None], options)
@@ -804,17 +807,19 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
 def _graph_distances_among(m: PreparedMesh, sources: np.ndarray,
                            columns: np.ndarray | None = None) -> np.ndarray:
     """Graph geodesic distances from ``sources`` to ``columns`` (default: the sources), by
-    Dijkstra in blocks of 64 sources: memory O(64 n), not O(s n)."""
+    Dijkstra in blocks of :data:`DIJKSTRA_BLOCK` sources: memory O(block n), not O(s n)."""
     columns = sources if columns is None else columns
     solver = m.solver("graph")
     if len(sources) == 0:
         return np.zeros((0, len(columns)))
-    return np.vstack([solver.distances(sources[b:b + 64])[:, columns] for b in range(0, len(sources), 64)])
+    return np.vstack([solver.distances(sources[b:b + DIJKSTRA_BLOCK])[:, columns]
+                      for b in range(0, len(sources), DIJKSTRA_BLOCK)])
 
 
 class _DistancesWithin:
-    """Graph distances among a fixed vertex set of one mesh, filled one Dijkstra source at a
-    time as asked for (memory O(w²) for w vertices)."""
+    """Graph distances among a fixed vertex set of one mesh, filled as asked for by Dijkstra
+    from the sources not seen before, in blocks of :data:`DIJKSTRA_BLOCK` (memory O(w²) for w
+    vertices)."""
 
     def __init__(self, m: PreparedMesh, within: np.ndarray):
         self.m = m
@@ -833,8 +838,8 @@ class _DistancesWithin:
         if len(todo):
             from geoshape.parallel import map_beside
 
-            # blocks of 64 Dijkstra sources, shared with a second core when there are several
-            blocks = [todo[b:b + 64] for b in range(0, len(todo), 64)]
+            # blocks of Dijkstra sources, shared with a second core when there are several
+            blocks = [todo[b:b + DIJKSTRA_BLOCK] for b in range(0, len(todo), DIJKSTRA_BLOCK)]
             rows = map_beside(lambda block: _graph_distances_among(self.m, self.within[block], self.within),
                               blocks)
             self.D[todo] = np.vstack(rows)
@@ -934,12 +939,6 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     return p2p
 
 
-def _full_resolution_timed(ctx: PairContext, chosen: Candidate, options: GeoshapeOptions) -> tuple:
-    """``(p2p_12, timings)`` of :func:`full_resolution` (run beside the last candidates)."""
-    timings: dict = {}
-    return full_resolution(ctx, chosen, options, timings), timings
-
-
 def alternatives(ranked: list[Candidate], refined: list[Candidate]) -> list[dict]:
     """``Correspondence.alternatives``: every screened candidate by :func:`screening_score`, then
     every refined candidate that is not a signed order (descriptor maps, the orientation
@@ -957,7 +956,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     with on large meshes, else None: maps hold every vertex).
     """
     from geoshape.correspondence.mesh_matching import Correspondence
-    from geoshape.parallel import beside
+    from geoshape.parallel import beside, can_run_beside
 
     timings: dict = {}
     # independent stages run beside each other on a second core (parallel.beside): mesh 1's
@@ -975,7 +974,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         t = time.perf_counter()
         m2.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
         timings["embedding"] = time.perf_counter() - t
-        timings["eigenpairs (beside)"] = _adopted(basis1.result(), (m1,))
+        timings["eigenpairs and embedding (beside)"] = _adopted(basis1.result(), (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)
     screened, descriptor_maps = screen_beside_descriptors(ctx, alignments, options, timings)
@@ -984,11 +983,15 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     refined += descriptor_maps
     measure_distortion(ctx, refined, options, timings)
     # the repair and the symmetry completion only add candidates, and mostly the decision
-    # stays with the best map so far: its full-resolution map is computed beside them (a
-    # child only when a map has the unwanted orientation, i.e. when they can run at all)
+    # stays with the best map so far: its full-resolution map is computed in a child beside
+    # them when they can run (a map has the unwanted orientation) and a child can be forked;
+    # otherwise only the chosen map is computed, after the decision
     likely = decide(refined, options)
-    with beside(_full_resolution_timed, ctx, likely, options,
-                fork=None if any(c.unwanted for c in refined) else False) as final_likely:
+    may_add = any(c.unwanted for c in refined) and (options.orientation_repair or options.symmetry_completion)
+    final_likely = None
+    if may_add and can_run_beside():
+        final_likely = beside(_timed, full_resolution, ctx, likely, options)
+    try:
         repaired = orientation_repair(ctx, refined, options, timings)
         measure_distortion(ctx, repaired, options, timings)
         refined += repaired
@@ -997,15 +1000,18 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
             measure_distortion(ctx, [completed], options, timings)
             refined.append(completed)
         chosen = decide(refined, options)
-        if chosen is likely:
+        if final_likely is not None and chosen is likely:
             p2p, final_timings = final_likely.result()
             timings.update(final_timings)
+    finally:
+        if final_likely is not None:
+            final_likely.cancel()
     details = {"large_mesh_mode": ctx.large, "symmetry_completed": bool(chosen.symmetry_completed),
                "source": chosen.source, "distortion": chosen.distortion,
                "decision_score": decision_score(chosen), "candidates": refined,
                "chosen_index": next(i for i, c in enumerate(refined) if c is chosen),
                "candidate_rows": ctx.s1 if ctx.large else None}
-    if chosen is not likely:
+    if final_likely is None or chosen is not likely:
         p2p = full_resolution(ctx, chosen, options, timings)
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,

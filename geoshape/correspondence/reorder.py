@@ -64,7 +64,9 @@ def _exhaustive(A, B, n_keep, beside=False):
         return [Alignment(tuple(perm), tuple(int(x) for x in sign_table[s]), float(costs[s]))
                 for s in np.argsort(costs)[:n_keep]]
 
-    per_perm = map_beside(cheapest, perms) if beside else [cheapest(perm) for perm in perms]
+    # the first order here: the kernel is compiled (or loaded) before any child needs it
+    per_perm = [cheapest(perms[0])]
+    per_perm += map_beside(cheapest, perms[1:]) if beside else [cheapest(perm) for perm in perms[1:]]
     results = [a for alignments in per_perm for a in alignments]
     results.sort(key=lambda a: a.cost)
     return results[:n_keep]
@@ -163,6 +165,8 @@ def align_embeddings(A, B, method: str = "exhaustive", *, n_keep: int = 2,
     if A.ndim != 2 or B.ndim != 2 or A.shape[1] != B.shape[1]:
         raise InvalidOptionError(f"embeddings must be (n1, k) and (n2, k), got {A.shape} and {B.shape}")
     k = A.shape[1]
+    if k < 1:
+        raise InvalidOptionError(f"embeddings must have at least one column, got {A.shape} and {B.shape}")
     if method == "exhaustive" and k > 7:
         raise InvalidOptionError(f"exhaustive reordering of k = {k} columns is intractable; use 'greedy'")
     A_s = A[euclidean_farthest_point_sampling(A, max_points, seed)]
