@@ -276,26 +276,31 @@ def test_map_beside_after_reraises_an_error_wherever_it_happens(where):
 
     from geoshape.parallel import can_run_beside, map_beside_after
 
-    took = os.pipe()
+    to_child, to_parent = os.pipe(), os.pipe()
+
+    def meet(say, hear):  # each process holds an item until the other holds one (or failed first)
+        os.write(say[1], b"x")
+        assert select.select([hear[0]], [], [], 60)[0], "the other process never took an item"
 
     def child_item(x):
-        os.write(took[1], b"x")
+        meet(to_parent, to_child)
         return _fails_if_negative(-x if where == "child item" else x)
 
     def first():
         if where == "child first":
-            os.write(took[1], b"x")
+            os.write(to_parent[1], b"x")
             raise InvalidOptionError("item -0: must not be negative (first)")
 
-    def here(x):  # waits until the child has taken an item (or failed first)
-        assert select.select([took[0]], [], [], 60)[0], "the child never started"
+    def here(x):
+        meet(to_child, to_parent)
         return _fails_if_negative(-x if where == "here" else x)
 
     try:
         with pytest.raises(InvalidOptionError, match=r"item -\d: must not be negative"):
-            map_beside_after(first, child_item, [1, 2, 3], here=here)
+            map_beside_after(first, child_item, [1, 2], here=here)
     finally:
-        os.close(took[0]), os.close(took[1])
+        for fd in (*to_child, *to_parent):
+            os.close(fd)
     assert can_run_beside()  # the child was reaped or killed
 
 
