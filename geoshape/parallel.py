@@ -810,7 +810,7 @@ def map_beside_after(first: Callable[[], Any] | None, fn: Callable[[Any], Any], 
         return (first() if first is not None else None), [fn(x) for x in items]
     here = fn if here is None else here
     per_run = max(1, -(-len(items) // _MAX_TOKENS))
-    runs = [range(a, min(a + per_run, len(items))) for a in range(0, len(items), per_run)]
+    runs = _chunks(len(items), per_run)
     fd = _token_pipe(len(runs))
     try:
         def child():

@@ -357,12 +357,17 @@ def _adopted(outcome: tuple, meshes: tuple):
     return value
 
 
+def _alignment_embedding(m: PreparedMesh, options: GeoshapeOptions):
+    """``m``'s spectral embedding as :func:`candidate_alignments` asks for it (cached)."""
+    return m.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
+
+
 def _eigenpairs_and_embedding(m: PreparedMesh, k: int, options: GeoshapeOptions) -> float:
-    """``m``'s ``k`` Laplace–Beltrami eigenpairs and its spectral embedding as
-    :func:`candidate_alignments` asks for it (both cached); returns the seconds taken."""
+    """``m``'s ``k`` Laplace–Beltrami eigenpairs and :func:`_alignment_embedding` (both
+    cached); returns the seconds taken."""
     t = time.perf_counter()
     m.laplacian(k)
-    m.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
+    _alignment_embedding(m, options)
     return time.perf_counter() - t
 
 
@@ -807,13 +812,16 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
 def _graph_distances_among(m: PreparedMesh, sources: np.ndarray,
                            columns: np.ndarray | None = None) -> np.ndarray:
     """Graph geodesic distances from ``sources`` to ``columns`` (default: the sources), by
-    Dijkstra in blocks of :data:`DIJKSTRA_BLOCK` sources: memory O(block n), not O(s n)."""
+    Dijkstra in blocks of :data:`DIJKSTRA_BLOCK` sources (memory O(block n), not O(s n)),
+    shared with a second core when there are several (:func:`~geoshape.parallel.map_beside`)."""
+    from geoshape.parallel import map_beside
+
     columns = sources if columns is None else columns
     solver = m.solver("graph")
     if len(sources) == 0:
         return np.zeros((0, len(columns)))
-    return np.vstack([solver.distances(sources[b:b + DIJKSTRA_BLOCK])[:, columns]
-                      for b in range(0, len(sources), DIJKSTRA_BLOCK)])
+    blocks = [sources[b:b + DIJKSTRA_BLOCK] for b in range(0, len(sources), DIJKSTRA_BLOCK)]
+    return np.vstack(map_beside(lambda block: solver.distances(block)[:, columns], blocks))
 
 
 class _DistancesWithin:
@@ -836,13 +844,7 @@ class _DistancesWithin:
             return _graph_distances_among(self.m, vertices)
         todo = pos[~self.known[pos]]
         if len(todo):
-            from geoshape.parallel import map_beside
-
-            # blocks of Dijkstra sources, shared with a second core when there are several
-            blocks = [todo[b:b + DIJKSTRA_BLOCK] for b in range(0, len(todo), DIJKSTRA_BLOCK)]
-            rows = map_beside(lambda block: _graph_distances_among(self.m, self.within[block], self.within),
-                              blocks)
-            self.D[todo] = np.vstack(rows)
+            self.D[todo] = _graph_distances_among(self.m, self.within[todo], self.within)
             self.known[todo] = True
         return self.D[np.ix_(pos, pos)]
 
@@ -972,7 +974,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         m2.laplacian(k)
         timings["eigenpairs"] = time.perf_counter() - t
         t = time.perf_counter()
-        m2.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
+        _alignment_embedding(m2, options)
         timings["embedding"] = time.perf_counter() - t
         timings["eigenpairs and embedding (beside)"] = _adopted(basis1.result(), (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
@@ -988,7 +990,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     # otherwise only the chosen map is computed, after the decision
     likely = decide(refined, options)
     may_add = any(c.unwanted for c in refined) and (options.orientation_repair or options.symmetry_completion)
-    final_likely = None
+    final_likely = p2p = None
     if may_add and can_run_beside():
         final_likely = beside(_timed, full_resolution, ctx, likely, options)
     try:
@@ -1011,7 +1013,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
                "decision_score": decision_score(chosen), "candidates": refined,
                "chosen_index": next(i for i, c in enumerate(refined) if c is chosen),
                "candidate_rows": ctx.s1 if ctx.large else None}
-    if final_likely is None or chosen is not likely:
+    if p2p is None:  # no speculative map, or the decision moved to a candidate added since
         p2p = full_resolution(ctx, chosen, options, timings)
     details["orientation"] = orientation_score(m1.V, m1.F, m2.V, m2.F, p2p)
     return Correspondence(p2p, chosen.refined_energy, "geoshape", chosen.alignment,
