@@ -430,3 +430,29 @@ def test_stages_beside_each_other_give_the_same_map_as_one_process(monkeypatch):
     assert scores[0] == scores[1]  # every candidate, bit for bit
     assert alone.details["chosen_index"] == together.details["chosen_index"]
     assert "eigenpairs and embedding (beside)" in together.timings
+
+
+@pytest.mark.usefixtures("no_other_threads")
+def test_the_embedding_computed_beside_the_eigen_solve_is_the_one_the_alignment_uses(monkeypatch):
+    from geoshape.correspondence import pipeline
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.parallel import can_run_beside
+    from geoshape.spectral import embedding as embedding_module
+
+    if not can_run_beside():
+        pytest.skip("beside forks only on Linux with 2+ cores")
+    V1, V2, F = figure("biped")
+    m1, m2 = PreparedMesh(V1, F), PreparedMesh(V2, F)
+    here = []
+    real = embedding_module.spectral_embedding
+
+    def counted(*args, **kwargs):
+        here.append(1)  # the child's calls append to the child's copy of this list
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(embedding_module, "spectral_embedding", counted)
+    pipeline.run_geoshape(m1, m2, pipeline.GeoshapeOptions.from_options({}))
+    assert len(here) == 1  # mesh 2's, in this process: mesh 1's came from the child, not again
+    for m in (m1, m2):
+        assert [key for key in m.cache_keys() if key[0] == "embedding"] == [
+            ("embedding", 5, pipeline.EMBEDDING_SCALING, "max", None, "auto", "graph", 0)]

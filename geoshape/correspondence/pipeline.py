@@ -282,14 +282,20 @@ def spectral_alignments(m1: PreparedMesh, m2: PreparedMesh, *, k, scaling, reord
     """Both meshes' spectral embeddings and the cheapest signed column orders of mesh 2's.
 
     Returns ``(A (n1, k), B (n2, k), alignments)``, cheapest first (``n_keep`` of them).
-    Nyström embeddings O(l n log n); exhaustive reordering O(k! 2^k s^2) on s = 200 samples
-    (shared with a second core).
+    Nyström embeddings O(l n log n), then :func:`embedding_alignments`.
     Shared by every spectral method (``jz``, ``shapiro-brady``, ``improved-sb``).
     """
     t = time.perf_counter()
     e1 = m1.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
     e2 = m2.embedding(k, scaling=scaling, sigma=sigma, n_samples=n_samples, seed=seed)
     timings["embedding"] = timings.get("embedding", 0.0) + time.perf_counter() - t
+    return embedding_alignments(e1, e2, reorder=reorder, n_keep=n_keep, seed=seed, timings=timings)
+
+
+def embedding_alignments(e1, e2, *, reorder, n_keep, seed, timings: dict):
+    """``(A (n1, k), B (n2, k), alignments)`` of two spectral embeddings: the ``n_keep``
+    cheapest signed column orders of ``e2``'s, cheapest first. Exhaustive reordering
+    O(k! 2^k s^2) on s = 200 samples (shared with a second core)."""
     t = time.perf_counter()
     alignments = align_embeddings(e1.coords, e2.coords, reorder, n_keep=n_keep, seed=seed, beside=True)
     timings["reorder"] = time.perf_counter() - t
@@ -320,12 +326,15 @@ def sign_flip_variants(alignments: list, A: np.ndarray, B: np.ndarray) -> list:
 def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions, timings: dict):
     """Stage 1: ``(A (n1, k), B (n2, k), alignments)`` — the ``n_keep`` cheapest signed
     orders of √λ-scaled embeddings, then every other sign vector of the best order
-    (up to n_keep + 2^k − 1 alignments). Cost: :func:`spectral_alignments` +
-    :func:`sign_flip_variants`.
+    (up to n_keep + 2^k − 1 alignments). The embeddings are :func:`_alignment_embedding`'s,
+    so the one a child computed beside the eigen-solve is the one used. Cost: the Nyström
+    embeddings (cached), :func:`embedding_alignments` and :func:`sign_flip_variants`.
     """
-    A, B, alignments = spectral_alignments(m1, m2, k=options.k, scaling=EMBEDDING_SCALING,
-                                           reorder=options.reorder, n_keep=options.n_keep,
-                                           n_samples=options.n_samples, seed=options.seed, timings=timings)
+    t = time.perf_counter()
+    e1, e2 = _alignment_embedding(m1, options), _alignment_embedding(m2, options)
+    timings["embedding"] = timings.get("embedding", 0.0) + time.perf_counter() - t
+    A, B, alignments = embedding_alignments(e1, e2, reorder=options.reorder, n_keep=options.n_keep,
+                                            seed=options.seed, timings=timings)
     return A, B, alignments + sign_flip_variants(alignments, A, B)
 
 
