@@ -174,3 +174,20 @@ def test_baseline_on_a_bent_pose_stays_within_its_measured_error(method):
     c = correspond(V, F, W2, F2, method=method)
     err = np.linalg.norm(V[perm[c.p2p_12]] - V, axis=1) / diameter(V)  # distance on pose 1
     assert err.mean() < bound
+
+
+def test_nonrigid_icp_with_a_shared_searcher_warps_exactly_as_with_its_own():
+    from geoshape.correspondence.icp import nonrigid_icp
+    from geoshape.geometry.knn import nearest_searcher
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((400, 5))
+    B = A[rng.permutation(400)] @ np.diag([1.0, -1.0, 1.0, 1.0, -1.0]) + 0.05 * rng.standard_normal((400, 5))
+    shared = nearest_searcher(A)
+    own, info = nonrigid_icp(A, B, n_iter=4, n_controls=60)
+    reused, info_reused = nonrigid_icp(A, B, n_iter=4, n_controls=60, nearest_in_A=shared)
+    np.testing.assert_array_equal(own, reused)
+    assert info == info_reused and info["iterations"] >= 1
+    # the searcher is what ICP matches against: one over other points gives another warp
+    other, _ = nonrigid_icp(A, B, n_iter=4, n_controls=60, nearest_in_A=nearest_searcher(A[::-1] * 2))
+    assert not np.allclose(own, other)

@@ -31,12 +31,14 @@ def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0
 
 def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | None = None,
                  anneal: float = 0.5, seed: int = 0, return_transform: bool = False,
-                 controls: np.ndarray | None = None):
+                 controls: np.ndarray | None = None, nearest_in_A=None):
     """Warp ``B (n2, k)`` towards ``A (n1, k)`` with thin-plate splines.
 
     ``controls`` (row indices of ``B``) replaces the farthest-point choice of the
     ``n_controls`` controls, e.g. to share them between the signed orders of one
-    embedding. The nearest-point search structure on ``A`` is built once per call.
+    embedding. The nearest-point search structure on ``A`` is built once per call, or
+    passed as ``nearest_in_A`` (:func:`~geoshape.geometry.knn.nearest_searcher` of ``A``)
+    to share it between calls with the same ``A``.
 
     Returns
     -------
@@ -53,7 +55,7 @@ def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | N
     else:
         ctrl = np.asarray(controls)
     lam = mean_pair_distance(A, B, seed=seed) if lam is None else float(lam)
-    nearest_in_A = nearest_searcher(A)
+    nearest_in_A = nearest_searcher(A) if nearest_in_A is None else nearest_in_A
     B_ctrl = B[ctrl]
     warped_ctrl = B_ctrl  # only the controls are warped inside the loop: O(c^2 k) per step
     tps = None

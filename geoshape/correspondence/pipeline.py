@@ -39,7 +39,7 @@ from geoshape.correspondence.icp import nonrigid_icp
 from geoshape.correspondence.orientation import orientation_score
 from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
 from geoshape.errors import InvalidOptionError
-from geoshape.geometry.knn import nearest
+from geoshape.geometry.knn import nearest, nearest_searcher
 
 if TYPE_CHECKING:
     from geoshape.correspondence.mesh_matching import Correspondence, PreparedMesh
@@ -397,10 +397,10 @@ def screen_beside_descriptors(ctx: PairContext, alignments: list, options: Geosh
     from geoshape.parallel import map_beside_after
 
     t = time.perf_counter()
-    controls = screening_controls(ctx, options)
+    controls, icp_search = screening_controls(ctx, options), icp_target_searcher(ctx)
 
     def coarse(a):
-        return coarse_candidate(ctx, a, controls, options)
+        return coarse_candidate(ctx, a, controls, options, icp_search)
 
     def coarse_and_distortion(a):
         c = coarse(a)
@@ -479,20 +479,29 @@ def screening_controls(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray
     return euclidean_farthest_point_sampling(ctx.B, options.n_controls, options.seed)
 
 
+def icp_target_searcher(ctx: PairContext):
+    """:func:`~geoshape.geometry.knn.nearest_searcher` over the rows of mesh 1's embedding that
+    the TPS-ICP of every signed order matches against (the refinement samples on large
+    meshes, else every vertex): its KD-tree is built once per pair, O(n log n)."""
+    return nearest_searcher(ctx.A[ctx.s1] if ctx.large else ctx.A)
+
+
 def coarse_candidate(ctx: PairContext, a: Alignment, controls: np.ndarray,
-                     options: GeoshapeOptions) -> Candidate:
+                     options: GeoshapeOptions, icp_search=None) -> Candidate:
     """Stage 3 (screening, with :func:`measure_coarse_distortion`): the :class:`Candidate` of
     one alignment with its coarse map and ``zoomout_energy``: TPS-ICP O(iter c^3) on the
     ``controls``, then ZoomOut ``zoomout_start`` → ``screen_k`` on ``screen_samples`` samples
     O(iter s^2 k) (the thesis' L2 reordering cost alone often ranks the right signed order
-    only 5th–15th)."""
+    only 5th–15th). ``icp_search``: :func:`icp_target_searcher` (built here when not given).
+    """
     from geoshape.correspondence.fmaps.zoomout import zoomout
 
     A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
     # on large meshes the controls are matched against the refinement samples of A only
     A_targets = A[ctx.s1] if large else A
     warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=options.icp_iterations, controls=controls,
-                           seed=options.seed, return_transform=True)
+                           seed=options.seed, return_transform=True,
+                           nearest_in_A=icp_target_searcher(ctx) if icp_search is None else icp_search)
     init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
     # large meshes keep the map on the samples; otherwise every vertex of mesh 1 is mapped
     # onto the samples of mesh 2
