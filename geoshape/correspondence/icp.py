@@ -12,6 +12,8 @@ Procrustes on nearest neighbours, started from the PCA-aligned pose.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from geoshape.correspondence.tps import fit_tps
@@ -31,7 +33,8 @@ def mean_pair_distance(A: np.ndarray, B: np.ndarray, n: int = 200, seed: int = 0
 
 def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | None = None,
                  anneal: float = 0.5, seed: int = 0, return_transform: bool = False,
-                 controls: np.ndarray | None = None, nearest_in_A=None):
+                 controls: np.ndarray | None = None,
+                 nearest_in_A: Callable[[np.ndarray], np.ndarray] | None = None):
     """Warp ``B (n2, k)`` towards ``A (n1, k)`` with thin-plate splines.
 
     ``controls`` (row indices of ``B``) replaces the farthest-point choice of the

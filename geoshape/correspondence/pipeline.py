@@ -479,11 +479,16 @@ def screening_controls(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray
     return euclidean_farthest_point_sampling(ctx.B, options.n_controls, options.seed)
 
 
+def icp_targets(ctx: PairContext) -> np.ndarray:
+    """The rows of mesh 1's embedding the TPS-ICP of every signed order matches against: the
+    refinement samples on large meshes, else every vertex."""
+    return ctx.A[ctx.s1] if ctx.large else ctx.A
+
+
 def icp_target_searcher(ctx: PairContext):
-    """:func:`~geoshape.geometry.knn.nearest_searcher` over the rows of mesh 1's embedding that
-    the TPS-ICP of every signed order matches against (the refinement samples on large
-    meshes, else every vertex): its KD-tree is built once per pair, O(n log n)."""
-    return nearest_searcher(ctx.A[ctx.s1] if ctx.large else ctx.A)
+    """:func:`~geoshape.geometry.knn.nearest_searcher` over :func:`icp_targets`: its KD-tree
+    is built once per pair, O(n log n)."""
+    return nearest_searcher(icp_targets(ctx))
 
 
 def coarse_candidate(ctx: PairContext, a: Alignment, controls: np.ndarray,
@@ -497,9 +502,7 @@ def coarse_candidate(ctx: PairContext, a: Alignment, controls: np.ndarray,
     from geoshape.correspondence.fmaps.zoomout import zoomout
 
     A, B, c1, c2, large = ctx.A, ctx.B, ctx.c1, ctx.c2, ctx.large
-    # on large meshes the controls are matched against the refinement samples of A only
-    A_targets = A[ctx.s1] if large else A
-    warp, _ = nonrigid_icp(A_targets, a.apply(B), n_iter=options.icp_iterations, controls=controls,
+    warp, _ = nonrigid_icp(icp_targets(ctx), a.apply(B), n_iter=options.icp_iterations, controls=controls,
                            seed=options.seed, return_transform=True,
                            nearest_in_A=icp_target_searcher(ctx) if icp_search is None else icp_search)
     init = c2[nearest(warp(a.apply(B[c2])), A[c1])[1]]  # samples of mesh 1 → samples of mesh 2
