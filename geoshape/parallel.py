@@ -325,6 +325,16 @@ def die_with_parent(parent_pid: int | None = None) -> None:
         os._exit(1)
 
 
+def _start_worker(parent_pid: int) -> None:
+    """Initializer of a pool worker: :func:`die_with_parent`, and SIGTERM (how
+    :func:`_stop_now` and a dying parent stop it) removes the output it was writing
+    (:func:`geoshape.io.atomic.remove_temporaries_on_sigterm`)."""
+    from geoshape.io.atomic import remove_temporaries_on_sigterm
+
+    die_with_parent(parent_pid)
+    remove_temporaries_on_sigterm()
+
+
 def _stop_now(executor) -> None:
     """Terminate a pool's workers at once (Ctrl-C): running tasks are abandoned, not awaited."""
     import contextlib
@@ -346,7 +356,7 @@ def _run_processes(func, items, chunks, on_error, workers, results, bar) -> None
 
     ctx = mp.get_context("spawn")
     executor = ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=ctx,
-                                   initializer=die_with_parent, initargs=(os.getpid(),))
+                                   initializer=_start_worker, initargs=(os.getpid(),))
     futures: dict = {}
     try:
         for rng_ in chunks:

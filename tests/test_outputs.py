@@ -130,3 +130,35 @@ def test_help_states_the_image_and_width_limits_the_library_enforces(capsys, tmp
     Image.new("L", (side, side)).save(tmp_path / "big.png")
     assert main(["match2d", str(tmp_path / "big.png"), str(tmp_path / "big.png")]) == 2
     assert "image too large" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
+@pytest.mark.parametrize("staged", [False, True])
+def test_sigterm_removes_the_temporary_a_worker_was_writing(tmp_path, staged):
+    import signal
+    import time
+
+    from geoshape.io.atomic import atomic_path, leftover_temporaries, remove_temporaries_on_sigterm
+
+    dest = tmp_path / "map.txt"
+    ready_r, ready_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # a worker, terminated while its output is still a temporary
+        try:
+            remove_temporaries_on_sigterm()
+            with staged_outputs() if staged else open(os.devnull) as _:
+                with atomic_path(dest) as tmp:
+                    tmp.write_text("half")
+                    if not staged:
+                        os.write(ready_w, b"x")
+                        time.sleep(30)
+                os.write(ready_w, b"x")  # staged: written, waiting for the block to commit
+                time.sleep(30)
+        finally:
+            os._exit(1)
+    os.read(ready_r, 1)
+    assert leftover_temporaries(dest)  # the temporary exists while the worker writes
+    os.kill(pid, signal.SIGTERM)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGTERM  # it still dies of SIGTERM
+    assert not leftover_temporaries(dest) and not dest.exists()

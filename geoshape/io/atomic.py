@@ -25,6 +25,9 @@ from geoshape.errors import OutputError
 
 #: Pending ``(temporary, destination)`` renames of the innermost :func:`staged_outputs`.
 _STAGE: contextvars.ContextVar[list | None] = contextvars.ContextVar("geoshape_output_stage", default=None)
+#: Temporaries of the :func:`atomic_path` blocks running in this process, for
+#: :func:`remove_temporaries_on_sigterm`.
+_OPEN: set[Path] = set()
 
 
 def _default_mode() -> int:
@@ -60,8 +63,9 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         # (the name pattern is what leftover_temporaries() looks for)
     except OSError as exc:
         raise _output_error(dest, exc) from None
-    os.close(fd)
     tmp = Path(tmp_name)
+    _OPEN.add(tmp)
+    os.close(fd)
     stage = _STAGE.get()
     try:
         try:
@@ -77,6 +81,27 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+    finally:
+        _OPEN.discard(tmp)
+
+
+def remove_temporaries_on_sigterm() -> None:
+    """From now on SIGTERM first removes the temporaries of this process's running
+    :func:`atomic_path` blocks (and of a :func:`staged_outputs` block waiting to commit),
+    then ends the process as SIGTERM does. For worker processes a pool stops by terminating
+    them (Ctrl-C of a batch): a map being written is not left behind as a temporary. Call
+    from the main thread."""
+    import signal
+
+    def handler(signum, _frame):
+        staged = [tmp for tmp, _dest in (_STAGE.get() or [])]
+        for tmp in [*_OPEN, *staged]:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+
+    signal.signal(signal.SIGTERM, handler)
 
 
 def leftover_temporaries(path: str | os.PathLike) -> list[Path]:
