@@ -51,6 +51,11 @@ __all__ = ["BACKENDS", "ON_ERROR", "run_map", "pairwise_matrix", "default_n_jobs
 
 log = logging.getLogger(__name__)
 
+#: files this process is writing that would be left half-done if it were stopped now (the
+#: temporaries of geoshape.io.atomic, which adds and removes them): a pool worker removes
+#: them when it is terminated (:func:`remove_unfinished_files_on_sigterm`)
+UNFINISHED_FILES: set = set()
+
 #: The registry of backends, in the order the CLI lists them.
 BACKENDS = ("processes", "serial", "dask")
 #: What :func:`run_map` does when one item raises.
@@ -326,13 +331,27 @@ def die_with_parent(parent_pid: int | None = None) -> None:
 
 
 def _start_worker(parent_pid: int) -> None:
-    """Initializer of a pool worker: :func:`die_with_parent`, and SIGTERM (how
-    :func:`_stop_now` and a dying parent stop it) removes the output it was writing
-    (:func:`geoshape.io.atomic.remove_temporaries_on_sigterm`)."""
-    from geoshape.io.atomic import remove_temporaries_on_sigterm
-
+    """Initializer of a pool worker: :func:`die_with_parent` and
+    :func:`remove_unfinished_files_on_sigterm` (SIGTERM is how :func:`_stop_now` and a dying
+    parent stop it)."""
     die_with_parent(parent_pid)
-    remove_temporaries_on_sigterm()
+    remove_unfinished_files_on_sigterm()
+
+
+def remove_unfinished_files_on_sigterm() -> None:
+    """From now on SIGTERM first removes this process's :data:`UNFINISHED_FILES`, then ends
+    the process as SIGTERM does: a pool worker stopped by Ctrl-C of a batch leaves no
+    temporary of the output it was writing. Call from the main thread."""
+    import signal
+
+    def handler(signum, _frame):
+        for path in list(UNFINISHED_FILES):
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+
+    signal.signal(signal.SIGTERM, handler)
 
 
 def _stop_now(executor) -> None:

@@ -138,14 +138,15 @@ def test_sigterm_removes_the_temporary_a_worker_was_writing(tmp_path, staged):
     import signal
     import time
 
-    from geoshape.io.atomic import atomic_path, leftover_temporaries, remove_temporaries_on_sigterm
+    from geoshape.io.atomic import atomic_path, leftover_temporaries
+    from geoshape.parallel import remove_unfinished_files_on_sigterm
 
     dest = tmp_path / "map.txt"
     ready_r, ready_w = os.pipe()
     pid = os.fork()
     if pid == 0:  # a worker, terminated while its output is still a temporary
         try:
-            remove_temporaries_on_sigterm()
+            remove_unfinished_files_on_sigterm()
             with staged_outputs() if staged else open(os.devnull) as _:
                 with atomic_path(dest) as tmp:
                     tmp.write_text("half")
@@ -162,3 +163,19 @@ def test_sigterm_removes_the_temporary_a_worker_was_writing(tmp_path, staged):
     _, status = os.waitpid(pid, 0)
     assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGTERM  # it still dies of SIGTERM
     assert not leftover_temporaries(dest) and not dest.exists()
+
+
+def test_unfinished_files_hold_a_temporary_only_until_it_is_renamed_or_removed(tmp_path):
+    from geoshape.io.atomic import atomic_path
+    from geoshape.parallel import UNFINISHED_FILES
+
+    with atomic_path(tmp_path / "a.txt") as tmp:
+        assert tmp in UNFINISHED_FILES
+    with staged_outputs():
+        write_text_atomic(tmp_path / "b.txt", "b")
+        assert len(UNFINISHED_FILES) == 1  # staged: still a temporary until the block commits
+    with pytest.raises(RuntimeError), staged_outputs():
+        write_text_atomic(tmp_path / "c.txt", "c")
+        raise RuntimeError("the next output failed")
+    assert not UNFINISHED_FILES
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]

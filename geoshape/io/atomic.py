@@ -22,12 +22,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from geoshape.errors import OutputError
+from geoshape.parallel import UNFINISHED_FILES
 
 #: Pending ``(temporary, destination)`` renames of the innermost :func:`staged_outputs`.
 _STAGE: contextvars.ContextVar[list | None] = contextvars.ContextVar("geoshape_output_stage", default=None)
-#: Temporaries of the :func:`atomic_path` blocks running in this process, for
-#: :func:`remove_temporaries_on_sigterm`.
-_OPEN: set[Path] = set()
 
 
 def _default_mode() -> int:
@@ -64,7 +62,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     except OSError as exc:
         raise _output_error(dest, exc) from None
     tmp = Path(tmp_name)
-    _OPEN.add(tmp)
+    UNFINISHED_FILES.add(tmp)  # until renamed or removed (staged: until the block commits)
     os.close(fd)
     stage = _STAGE.get()
     try:
@@ -73,6 +71,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             os.chmod(tmp, _FILE_MODE)  # mkstemp creates 0o600 files
             if stage is None:
                 os.replace(tmp, dest)
+                UNFINISHED_FILES.discard(tmp)
         except OSError as exc:
             raise _output_error(dest, exc) from None
         if stage is not None:
@@ -80,28 +79,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        UNFINISHED_FILES.discard(tmp)
         raise
-    finally:
-        _OPEN.discard(tmp)
-
-
-def remove_temporaries_on_sigterm() -> None:
-    """From now on SIGTERM first removes the temporaries of this process's running
-    :func:`atomic_path` blocks (and of a :func:`staged_outputs` block waiting to commit),
-    then ends the process as SIGTERM does. For worker processes a pool stops by terminating
-    them (Ctrl-C of a batch): a map being written is not left behind as a temporary. Call
-    from the main thread."""
-    import signal
-
-    def handler(signum, _frame):
-        staged = [tmp for tmp, _dest in (_STAGE.get() or [])]
-        for tmp in [*_OPEN, *staged]:
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        signal.signal(signum, signal.SIG_DFL)
-        os.kill(os.getpid(), signum)
-
-    signal.signal(signal.SIGTERM, handler)
 
 
 def leftover_temporaries(path: str | os.PathLike) -> list[Path]:
@@ -150,17 +129,21 @@ def staged_outputs() -> Iterator[list]:
         for tmp, _dest in pending:
             with contextlib.suppress(OSError):
                 tmp.unlink()
+        UNFINISHED_FILES.difference_update(tmp for tmp, _dest in pending)
         raise
     finally:
         _STAGE.reset(token)
-    for i, (tmp, dest) in enumerate(pending):
-        try:
-            os.replace(tmp, dest)
-        except OSError as exc:
-            for later, _ in pending[i:]:
-                with contextlib.suppress(OSError):
-                    later.unlink()
-            raise _output_error(dest, exc) from None
+    try:
+        for i, (tmp, dest) in enumerate(pending):
+            try:
+                os.replace(tmp, dest)
+            except OSError as exc:
+                for later, _ in pending[i:]:
+                    with contextlib.suppress(OSError):
+                        later.unlink()
+                raise _output_error(dest, exc) from None
+    finally:
+        UNFINISHED_FILES.difference_update(tmp for tmp, _dest in pending)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
