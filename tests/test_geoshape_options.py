@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -223,6 +224,32 @@ def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
 
 
 @pytest.mark.slow
+def test_the_adding_stages_say_when_they_fire():
+    """``repair_source`` and ``may_complete_symmetry`` are the one home of the firing conditions
+    the speculative full-resolution map is decided on: the repair re-solves the mirrored map
+    of lowest decision score; neither can fire without a map of the unwanted orientation."""
+    def refined(energy, unwanted):
+        return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy, distortion=0.1,
+                         refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted)
+
+    ctx = SimpleNamespace(lb_k=60)
+    options = GeoshapeOptions()
+    direct, worse_mirror, better_mirror = refined(0.01, False), refined(0.05, True), refined(0.02, True)
+    assert pipeline.repair_source(ctx, [direct, worse_mirror, better_mirror], options) is better_mirror
+    assert pipeline.may_complete_symmetry([direct, worse_mirror], options)
+    for pool in ([], [direct]):
+        assert pipeline.repair_source(ctx, pool, options) is None
+        assert not pipeline.may_complete_symmetry(pool, options)
+        assert pipeline.complete_symmetry(ctx, pool, options, {}) is None
+    def changed(**kw):
+        return dataclasses.replace(options, **kw)
+
+    assert pipeline.repair_source(ctx, [better_mirror], changed(orientation_repair=False)) is None
+    assert pipeline.repair_source(SimpleNamespace(lb_k=2), [better_mirror], options) is None  # < 3 eigenpairs
+    assert not pipeline.may_complete_symmetry([better_mirror], changed(prefer="reversing"))
+    assert not pipeline.may_complete_symmetry([better_mirror], changed(symmetry_completion=False))
+
+
 def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkeypatch):
     """A planted mirrored candidate: a standing figure matched to itself through its front↔back
     reflection (hands and head stay, the feet point backwards). Re-solved with the

@@ -724,13 +724,10 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     A trial that also repaired the best descriptor map gained nothing (remeshed SCAPE,
     tosca_r5k, non-isometric dev sets) and cost one more solve.
     """
+    source = repair_source(ctx, refined, options)
+    if source is None:
+        return []
     kd = min(options.descriptor_k, ctx.lb_k)
-    if not (options.orientation_repair and kd >= 3):
-        return []
-    sources = [c for c in refined if c.unwanted]
-    if not sources:
-        return []
-    source = min(sources, key=decision_score)
     t = time.perf_counter()
     ends1, at = repair_landmarks(ctx, options)
     ends2 = source.refined_map[at]
@@ -747,6 +744,25 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     out = [_refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True, k_start=kd)]
     timings["orientation_repair"] = time.perf_counter() - t
     return out
+
+
+def repair_source(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> Candidate | None:
+    """The refined map :func:`orientation_repair` re-solves (of unwanted orientation, lowest
+    :func:`decision_score`), or None when the repair does not run: off, fewer than 3 usable
+    eigenpairs, or no map of the unwanted orientation. O(len(refined))."""
+    sources = [c for c in refined if c.unwanted]
+    if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
+        return None
+    return min(sources, key=decision_score)
+
+
+def may_complete_symmetry(refined: list[Candidate], options: GeoshapeOptions) -> bool:
+    """Whether :func:`complete_symmetry` can fire on ``refined`` and whatever the repair adds
+    to it: it is on, the wanted orientation is the preserving one, and some map has the
+    unwanted orientation (the repair runs only then, so without one the best map stays a
+    wanted one). A necessary condition; whether it fires is known after the repair."""
+    return (options.symmetry_completion and options.prefer == "preserving"
+            and any(c.unwanted for c in refined))
 
 
 def repair_landmarks(ctx: PairContext, options: GeoshapeOptions) -> tuple[np.ndarray, np.ndarray]:
@@ -774,7 +790,7 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
     only when no wanted map scores better than the mirrored one despite that share (a
     clean mirror's share is about 0.05): mostly when every candidate is mirrored.
     """
-    if not (options.symmetry_completion and options.prefer == "preserving" and refined):
+    if not may_complete_symmetry(refined, options):
         return None
     best = min(refined, key=decision_score)
     if not best.unwanted:
@@ -1007,10 +1023,10 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     measure_distortion(ctx, refined, options, timings)
     # the repair and the symmetry completion only add candidates, and mostly the decision
     # stays with the best map so far: its full-resolution map is computed in a child beside
-    # them when they can run (a map has the unwanted orientation) and a child can be forked;
+    # them when they can run (each stage's own firing condition) and a child can be forked;
     # otherwise only the chosen map is computed, after the decision
     likely = decide(refined, options)
-    may_add = any(c.unwanted for c in refined) and (options.orientation_repair or options.symmetry_completion)
+    may_add = repair_source(ctx, refined, options) is not None or may_complete_symmetry(refined, options)
     final_likely = p2p = None
     if may_add and can_run_beside():
         final_likely = beside(_timed, full_resolution, ctx, likely, options)
