@@ -180,3 +180,65 @@ def test_candidates_naming_no_pair_exits_2(tmp_path, capsys):
                            resolution=48)
     assert main(["bench", "correspondence", str(tmp_path / "tiny"), "--candidates", "nothing-like-this"]) == 2
     assert "no pair name contains" in capsys.readouterr().err
+
+
+def test_decision_weight_variants_halve_double_and_drop_each_exponent():
+    from geoshape.correspondence.pipeline import DECISION_EXPONENTS
+
+    variants = suite.decision_weight_variants()
+    assert variants[0][1] == tuple(DECISION_EXPONENTS) and variants[0][0].startswith("default")
+    changed = [[i for i in range(3) if e[i] != DECISION_EXPONENTS[i]] for _, e in variants[1:]]
+    assert all(len(c) == 1 for c in changed) and len(variants) == 1 + 3 * 3
+    for i in range(3):
+        assert sorted(e[i] for _, e in variants[1:] if e[i] != DECISION_EXPONENTS[i]) == [
+            0.0, 0.5 * DECISION_EXPONENTS[i], 2.0 * DECISION_EXPONENTS[i]]
+
+
+def test_redecided_errors_follow_the_exponents():
+    """A planted pool: a smooth but distorted map (low energy) against a less distorted one; the
+    default product takes the lower distortion × energy, dropping a factor hands the decision
+    to the other, and a mirrored map never wins while a wanted one is in the pool."""
+    from geoshape.bench.correspondence import CandidatePool
+    from geoshape.correspondence.pipeline import Candidate
+
+    def cand(distortion, energy, unwanted=False):
+        return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
+                         distortion=distortion, refined_orientation=-0.8 if unwanted else 0.8,
+                         unwanted=unwanted, orientation_share=0.1 if unwanted else 0.9)
+
+    pool = CandidatePool("p", [cand(0.10, 0.030), cand(0.20, 0.010), cand(0.01, 0.001, unwanted=True)],
+                         [0.02, 0.30, 0.40], [0.02, 0.30, 0.03], 1, 0.3, 0.3)
+    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0)).tolist() == [0.30]  # 0.002 < 0.003
+    assert suite.redecided_errors([pool], (1.0, 0.0, 1.0)).tolist() == [0.02]  # distortion alone
+    assert suite.redecided_errors([pool], (2.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0003 < 0.0004
+    assert suite.redecided_errors([pool], (1.0, 2.0, 1.0)).tolist() == [0.30]
+
+
+def test_decision_weights_run_writes_its_own_section(tmp_path, monkeypatch):
+    spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
+                        params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
+                                "resolution": 48})
+    monkeypatch.setattr(suite, "DEV_SETS", (spec,))
+    monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
+    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
+                              seed=0, sensitivity=False, decision_weights=True, no_results=False,
+                              section=None)
+    assert suite.run_suite(args) == 0
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert f"<!-- BEGIN {suite.DECISION_WEIGHTS_SECTION} -->" in text
+    assert f"<!-- BEGIN {suite.SECTION} -->" not in text
+    assert "retakes the pipeline's own choice on 1 of 1 pairs" in text
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "(" in line.split("|")[2]]
+    assert len(rows) == 1 + 9 + 1 and rows[-1].startswith("| best candidate in the pool")
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--decision-weights"], "--decision-weights needs --suite"),
+    (["--sensitivity"], "--sensitivity needs --suite"),
+    (["--suite", "generalization", "--sensitivity", "--decision-weights"], "give one"),
+])
+def test_suite_only_flags_are_checked(flags, message, capsys):
+    from geoshape.__main__ import main
+
+    assert main(["bench", "correspondence", *flags, "--no-results"]) == 2
+    assert message in capsys.readouterr().err

@@ -62,6 +62,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="instead of a table: for the pairs whose 'source -> target' name contains one of "
                    "these comma-separated strings, every refined candidate of the geoshape method with its "
                    "decision scores and its errors (print only)")
+    p.add_argument("--decision-weights", action="store_true",
+                   help="with --suite: instead of the suite table, the mean error and failures per set when "
+                   "the decision objective's exponents (distortion, energy, orientation share) are halved, "
+                   "doubled or set to 0, re-deciding on each pair's candidates (its own RESULTS section)")
     p.add_argument("--fields", default=None,
                    help="with --sensitivity: comma-separated geoshape options to vary (default: every "
                    "numeric default of the sensitivity table)")
@@ -204,6 +208,15 @@ def loaded_pairs(folder: Path, pairs, *, landmarks: int, seed: int, feature_poin
         yield LoadedPair(pi, f"{pair.source.name} -> {pair.target.name}", V1, F1, V2, F2, src, tgt, sym, ev)
 
 
+def limited_pairs(pairs: list, limit: int | None, *, spread: bool = False) -> list:
+    """The first ``limit`` of ``pairs`` (all when None), or with ``spread`` ``limit`` evenly
+    spaced ones (every class of a file sorted by class kept)."""
+    if spread and limit is not None and limit < len(pairs):
+        rows = np.unique(np.linspace(0, len(pairs) - 1, max(limit, 1)).round().astype(int))
+        pairs = [pairs[i] for i in rows]
+    return pairs[:limit]
+
+
 def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | None = None,
                    landmarks: int = 1000, seed: int = 0, options: dict | None = None, spread: bool = False,
                    log=print) -> tuple[list[PairResult], bool]:
@@ -220,11 +233,7 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     from geoshape.metrics.correspondence import geodesic_errors
 
     folder = Path(folder)
-    pairs = read_pairs(folder, pairs_file)
-    if spread and limit is not None and limit < len(pairs):
-        rows = np.unique(np.linspace(0, len(pairs) - 1, max(limit, 1)).round().astype(int))
-        pairs = [pairs[i] for i in rows]
-    pairs = pairs[:limit]
+    pairs = limited_pairs(read_pairs(folder, pairs_file), limit, spread=spread)
     feature_points = scape_feature_points(folder)
     results: list[PairResult] = []
     for lp in loaded_pairs(folder, pairs, landmarks=landmarks, seed=seed, feature_points=feature_points):
@@ -253,44 +262,71 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     return results, has_sym
 
 
-def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: int = 1000, seed: int = 0,
-                     options: dict | None = None, log=print) -> list[dict]:
-    """Why the geoshape method chose what it chose: for every pair of ``folder/pairs_file`` whose
-    ``"source -> target"`` name contains one of ``names``, one row per refined candidate
-    (``Correspondence.details["candidates"]``) with its decision factors and the mean direct and
-    symmetry-aware errors of its refined map at the evaluation landmarks (before the
-    full-resolution stage; on large meshes, where refined maps live on samples, each landmark
-    reads the image of its nearest refinement sample). Logged as a table per pair; returned as
-    dicts. O(pipeline + candidates × landmarks) per pair."""
+@dataclass
+class CandidatePool:
+    """One pair's refined candidates (``Correspondence.details["candidates"]``) with the mean
+    direct and symmetry-aware errors of each refined map at the evaluation landmarks, and the
+    errors of the pipeline's final map."""
+
+    name: str
+    candidates: list
+    errors: list[float]
+    errors_sym: list[float]
+    chosen_index: int
+    final_error: float
+    final_error_sym: float
+
+
+def candidate_pools(folder, pairs, *, landmarks: int = 1000, seed: int = 0, options: dict | None = None):
+    """Yield a :class:`CandidatePool` for each of ``pairs`` (rows of ``read_pairs``; a None row is
+    skipped and keeps its position, so landmarks are drawn as the suite draws them). Errors of
+    refined maps are taken before the full-resolution stage; on large meshes, where refined maps
+    live on samples, each landmark reads the image of its nearest refinement sample.
+    O(pipeline + candidates × landmarks) per pair."""
     from geoshape.correspondence.mesh_matching import correspond
-    from geoshape.correspondence.pipeline import decision_score
     from geoshape.geometry.knn import nearest
-    from geoshape.io.datasets import read_pairs, scape_feature_points
+    from geoshape.io.datasets import scape_feature_points
     from geoshape.metrics.correspondence import geodesic_errors
 
     folder = Path(folder)
-    # the rows keep their positions in the file, so landmarks are drawn as the suite draws them
-    named = [p if any(n in f"{p.source.name} -> {p.target.name}" for n in names) else None
-             for p in read_pairs(folder, pairs_file)]
-    rows = []
-    for lp in loaded_pairs(folder, named, landmarks=landmarks, seed=seed,
+    for lp in loaded_pairs(folder, pairs, landmarks=landmarks, seed=seed,
                            feature_points=scape_feature_points(folder)):
         V1, V2, F2, ev = lp.V1, lp.V2, lp.F2, lp.evaluator
         result = correspond(V1, lp.F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
         final = geodesic_errors(V2, F2, result.p2p_12[lp.src], lp.tgt, lp.sym, evaluator=ev)
         on_rows = result.details["candidate_rows"]
         at = lp.src if on_rows is None else nearest(V1[on_rows], V1[lp.src])[1]
-        log(f"== {lp.name}: final map {final['mean']:.4f} direct, "
-            f"{final.get('mean_sym_aware', float('nan')):.4f} symmetry-aware")
+        errors = [geodesic_errors(V2, F2, c.refined_map[at], lp.tgt, lp.sym, evaluator=ev)
+                  for c in result.details["candidates"]]
+        yield CandidatePool(lp.name, result.details["candidates"], [float(e["mean"]) for e in errors],
+                            [float(e.get("mean_sym_aware", float("nan"))) for e in errors],
+                            result.details["chosen_index"], float(final["mean"]),
+                            float(final.get("mean_sym_aware", float("nan"))))
+
+
+def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: int = 1000, seed: int = 0,
+                     options: dict | None = None, log=print) -> list[dict]:
+    """Why the geoshape method chose what it chose: for every pair of ``folder/pairs_file`` whose
+    ``"source -> target"`` name contains one of ``names``, one row per refined candidate
+    (:func:`candidate_pools`) with its decision factors and errors. Logged as a table per pair;
+    returned as dicts."""
+    from geoshape.correspondence.pipeline import decision_score
+    from geoshape.io.datasets import read_pairs
+
+    named = [p if any(n in f"{p.source.name} -> {p.target.name}" for n in names) else None
+             for p in read_pairs(Path(folder), pairs_file)]
+    rows = []
+    for pool in candidate_pools(folder, named, landmarks=landmarks, seed=seed, options=options):
+        log(f"== {pool.name}: final map {pool.final_error:.4f} direct, "
+            f"{pool.final_error_sym:.4f} symmetry-aware")
         log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
             "wanted | decision score")
-        for i, c in enumerate(result.details["candidates"]):
-            e = geodesic_errors(V2, F2, c.refined_map[at], lp.tgt, lp.sym, evaluator=ev)
-            row = {"pair": lp.name, "source": c.source, "error": float(e["mean"]),
-                   "error_sym": float(e.get("mean_sym_aware", float("nan"))), "distortion": c.distortion,
+        for i, c in enumerate(pool.candidates):
+            row = {"pair": pool.name, "source": c.source, "error": pool.errors[i],
+                   "error_sym": pool.errors_sym[i], "distortion": c.distortion,
                    "energy": c.refined_energy, "orientation": c.refined_orientation,
                    "wanted": not c.unwanted, "decision_score": decision_score(c),
-                   "chosen": i == result.details["chosen_index"]}
+                   "chosen": i == pool.chosen_index}
             rows.append(row)
             mark = "*" if row["chosen"] else " "
             log(f"  {mark} | {c.source} | {row['error']:.4f} | {row['error_sym']:.4f} | {c.distortion:.4f} | "
@@ -300,6 +336,14 @@ def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: in
 
 
 def _run(args: argparse.Namespace) -> int:
+    from geoshape.errors import InvalidOptionError
+
+    flags = (("--sensitivity", "sensitivity"), ("--decision-weights", "decision_weights"))
+    suite_only = [flag for flag, attr in flags if getattr(args, attr, False)]
+    if suite_only and not args.suite:
+        raise InvalidOptionError(f"{suite_only[0]} needs --suite generalization")
+    if len(suite_only) > 1:
+        raise InvalidOptionError("--sensitivity and --decision-weights write different tables: give one")
     if getattr(args, "candidates", None):
         return _run_candidates(args)
     if args.suite:

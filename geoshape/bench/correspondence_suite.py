@@ -31,6 +31,7 @@ import numpy as np
 
 SECTION = "correspondence-generalization"
 SENSITIVITY_SECTION = "correspondence-sensitivity"
+DECISION_WEIGHTS_SECTION = "correspondence-decision-weights"
 FAILURE_ERROR = 0.1
 """A pair whose mean direct error (÷ √area) exceeds this is a failure."""
 FLIP_RATIO = 0.5
@@ -234,6 +235,8 @@ def run_suite(args: argparse.Namespace) -> int:
     sets = prepared_sets(args, log)
     if args.sensitivity:
         return _run_sensitivity(args, sets, log, sensitivity_fields(getattr(args, "fields", None)))
+    if getattr(args, "decision_weights", False):
+        return _run_decision_weights(args, sets, log)
     methods = peer_methods([m for m in (args.methods or "geoshape").split(",") if m], args.peer)
     return _run_table(args, sets, methods, log)
 
@@ -321,4 +324,80 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
             f"rounded, at least 1) ({machine_note()}).\n\n"
             + markdown_table(header, body) + "\n")
     _write(args, SENSITIVITY_SECTION, text)
+    return 0
+
+
+def decision_weight_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, tuple[float, float, float]]]:
+    """``(label, exponents)``: the exponents of :func:`~geoshape.correspondence.pipeline.decision_score`
+    (distortion, energy, orientation share) as they are, then each one ×``factors`` and left out
+    (exponent 0), the others kept."""
+    from geoshape.correspondence.pipeline import DECISION_EXPONENTS
+
+    out = [("default " + str(tuple(float(x) for x in DECISION_EXPONENTS)), tuple(DECISION_EXPONENTS))]
+    for i, name in enumerate(("distortion", "energy", "orientation share")):
+        for f in (*factors, 0.0):
+            e = list(DECISION_EXPONENTS)
+            e[i] = DECISION_EXPONENTS[i] * f
+            label = f"{name} left out (exponent 0)" if f == 0 else f"{name} exponent ×{f:g} ({e[i]:g})"
+            out.append((label, tuple(e)))
+    return out
+
+
+def redecided_errors(pools, exponents) -> np.ndarray:
+    """Per pool (:class:`~geoshape.bench.correspondence.CandidatePool`), the refined-map error of the
+    candidate :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents``. O(candidates)."""
+    from geoshape.correspondence.pipeline import GeoshapeOptions, decide
+
+    options = GeoshapeOptions()
+    return np.array([p.errors[p.candidates.index(decide(p.candidates, options, exponents=exponents))]
+                     for p in pools])
+
+
+def _run_decision_weights(args, sets, log) -> int:
+    """``--decision-weights``: one pipeline run per pair keeps every refined candidate and its
+    errors; the decision is then re-taken with each :func:`decision_weight_variants` (no re-run),
+    and the mean direct error of the chosen refined maps and the failures are reported per set,
+    with the best map in each pool as the ceiling. O(pairs × pipeline)."""
+    from geoshape.bench.correspondence import candidate_pools, limited_pairs
+    from geoshape.bench.experiments._common import machine_note
+    from geoshape.bench.results import markdown_table
+    from geoshape.correspondence.pipeline import DECISION_EXPONENTS, GeoshapeOptions, decide
+    from geoshape.io.datasets import read_pairs
+
+    options = GeoshapeOptions()
+    pools = {}
+    for spec, folder in sets:
+        log(f"== {spec.name} ({folder}/{spec.pairs_file})")
+        pairs = limited_pairs(read_pairs(folder, spec.pairs_file), args.limit, spread=True)
+        pools[spec.name] = []
+        for i, pool in enumerate(candidate_pools(folder, pairs, landmarks=args.landmarks, seed=args.seed)):
+            pools[spec.name].append(pool)
+            log(f"[{i + 1}/{len(pairs)}] {pool.name}: {len(pool.candidates)} candidates, chosen "
+                f"{pool.errors[pool.chosen_index]:.4f}, best {min(pool.errors):.4f}")
+    # the default exponents must retake the pipeline's own decision on every pair
+    everything = [p for ps in pools.values() for p in ps]
+    agree = sum(p.candidates.index(decide(p.candidates, options, exponents=DECISION_EXPONENTS))
+                == p.chosen_index for p in everything)
+    total = len(everything)
+
+    def cell(errors: np.ndarray) -> str:
+        return f"{errors.mean():.4g} ({int((errors > FAILURE_ERROR).sum())})"
+
+    body = [[label] + [cell(redecided_errors(pools[s.name], e)) for s, _ in sets]
+            for label, e in decision_weight_variants()]
+    body.append(["best candidate in the pool (ceiling)"]
+                + [cell(np.array([min(p.errors) for p in pools[s.name]])) for s, _ in sets])
+    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+    limit = f" --limit {args.limit}" if args.limit else ""
+    text = (f"### 3D correspondence — weights of the decision objective (issue #14)\n\n"
+            f"Command: `geoshape bench correspondence --suite generalization --decision-weights{only}{limit} "
+            f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. One run of "
+            f"the geoshape method per pair keeps every refined candidate; the decision (wanted orientation "
+            f"first, then the lowest distortion^a × energy^b ÷ orientation share^c) is re-taken with each "
+            f"exponent ×0.5, ×2 and 0, the others at 1. Cells: mean direct error of the chosen *refined* "
+            f"map (before the full-resolution stage, so a little above the suite's) and, in brackets, "
+            f"failures (pairs above {FAILURE_ERROR}). The default row retakes the pipeline's own choice on "
+            f"{agree} of {total} pairs ({machine_note()}).\n\n"
+            + markdown_table(["decision exponents", *[s.name for s, _ in sets]], body) + "\n")
+    _write(args, DECISION_WEIGHTS_SECTION, text)
     return 0

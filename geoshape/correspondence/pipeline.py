@@ -911,10 +911,16 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 
 
-def decision_score(c: Candidate) -> float:
+#: Exponents of (distortion, energy, orientation share) in :func:`decision_score`: equal
+#: weights in log space. ``geoshape bench correspondence --suite generalization
+#: --decision-weights`` measures each one halved, doubled and left out on the dev sets.
+DECISION_EXPONENTS = (1.0, 1.0, 1.0)
+
+
+def decision_score(c: Candidate, exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> float:
     """The one objective every refined candidate is ranked by (lower is better): geodesic
     distortion × functional map energy ÷ the share of the surface whose orientation the map
-    keeps as asked (``orientation_share``).
+    keeps as asked (``orientation_share``), each factor raised to its ``exponents`` entry.
 
     Every factor is unit-free and at its best for an orientation-keeping isometry (0, 0 and
     1): the distortion compares normalised geodesic distances on sample pairs (sees which
@@ -924,17 +930,19 @@ def decision_score(c: Candidate) -> float:
     that the sign test of :func:`decide` lets through. A product weighs a relative change of
     any factor the same (equal weights in log space), so there is no weight to set.
     """
+    a, b, s = exponents
     share = 1.0 if c.orientation_share is None else max(c.orientation_share, 1e-6)
-    return c.distortion * c.refined_energy / share
+    return c.distortion ** a * c.refined_energy ** b / share ** s
 
 
-def decide(refined: list[Candidate], options: GeoshapeOptions) -> Candidate:
-    """Stage 5: the candidate of lowest :func:`decision_score` among those of the wanted
-    orientation (the sign of the orientation score, no threshold), or among all when none is.
-    A map must not win by being smooth and mirrored. O(len(refined)).
+def decide(refined: list[Candidate], options: GeoshapeOptions, *,
+           exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> Candidate:
+    """Stage 5: the candidate of lowest :func:`decision_score` (with ``exponents``) among those
+    of the wanted orientation (the sign of the orientation score, no threshold), or among all
+    when none is. A map must not win by being smooth and mirrored. O(len(refined)).
     """
     wanted = [c for c in refined if not c.unwanted] or refined
-    return min(wanted, key=decision_score)
+    return min(wanted, key=lambda c: decision_score(c, exponents))
 
 
 def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOptions,
