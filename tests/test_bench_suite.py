@@ -195,23 +195,30 @@ def test_decision_weight_variants_halve_double_and_drop_each_exponent():
 
 
 def test_redecided_errors_follow_the_exponents():
-    """A planted pool: a smooth but distorted map (low energy) against a less distorted one; the
-    default product takes the lower distortion × energy, dropping a factor hands the decision
-    to the other, and a mirrored map never wins while a wanted one is in the pool."""
+    """A planted pool: a smooth but distorted map (low energy, half its surface mirrored) against
+    a less distorted one; each exponent changed moves the decision as the product says, a
+    mirrored map never wins while a wanted one is in the pool, and a pair on which the method
+    raised counts as a failure."""
     from geoshape.bench.correspondence import CandidatePool
     from geoshape.correspondence.pipeline import Candidate
 
-    def cand(distortion, energy, unwanted=False):
+    def cand(distortion, energy, share, unwanted=False):
         return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
-                         distortion=distortion, refined_orientation=-0.8 if unwanted else 0.8,
-                         unwanted=unwanted, orientation_share=0.1 if unwanted else 0.9)
+                         distortion=distortion, refined_orientation=2 * share - 1,
+                         unwanted=unwanted, orientation_share=share)
 
-    pool = CandidatePool("p", [cand(0.10, 0.030), cand(0.20, 0.010), cand(0.01, 0.001, unwanted=True)],
-                         [0.02, 0.30, 0.40], [0.02, 0.30, 0.03], 1, 0.3, 0.3)
-    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0)).tolist() == [0.30]  # 0.002 < 0.003
-    assert suite.redecided_errors([pool], (1.0, 0.0, 1.0)).tolist() == [0.02]  # distortion alone
-    assert suite.redecided_errors([pool], (2.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0003 < 0.0004
-    assert suite.redecided_errors([pool], (1.0, 2.0, 1.0)).tolist() == [0.30]
+    pool = CandidatePool("p", [cand(0.10, 0.030, 0.9), cand(0.20, 0.010, 0.5), cand(0.01, 0.001, 0.1, True)],
+                         [0.02, 0.30, 0.40], [0.02, 0.30, 0.03], 0, 0.02, 0.02)
+    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0033 < 0.004
+    assert suite.redecided_errors([pool], (1.0, 1.0, 0.0)).tolist() == [0.30]  # 0.002 < 0.003
+    assert suite.redecided_errors([pool], (1.0, 1.0, 2.0)).tolist() == [0.02]  # 0.0037 < 0.008
+    assert suite.redecided_errors([pool], (1.0, 0.0, 0.0)).tolist() == [0.02]  # distortion alone
+    assert suite.redecided_errors([pool], (1.0, 2.0, 0.0)).tolist() == [0.30]  # 2e-5 < 9e-5
+    crashed = CandidatePool("q", [], [], [], error="bad mesh")
+    errors = suite.redecided_errors([pool, crashed], (1.0, 1.0, 0.0))
+    assert errors[0] == 0.30 and np.isnan(errors[1])
+    assert suite.weights_cell(errors) == "0.3 (2)"  # one pair above 0.1, one that raised
+    assert suite.weights_cell(np.array([np.nan])) == "— (1)"
 
 
 def test_decision_weights_run_writes_its_own_section(tmp_path, monkeypatch):
@@ -236,6 +243,7 @@ def test_decision_weights_run_writes_its_own_section(tmp_path, monkeypatch):
     (["--decision-weights"], "--decision-weights needs --suite"),
     (["--sensitivity"], "--sensitivity needs --suite"),
     (["--suite", "generalization", "--sensitivity", "--decision-weights"], "give one"),
+    (["--suite", "generalization", "--decision-weights", "--candidates", "x"], "give one"),
 ])
 def test_suite_only_flags_are_checked(flags, message, capsys):
     from geoshape.__main__ import main

@@ -223,7 +223,6 @@ def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
         assert c.orientation_share == pytest.approx(share) and c.unwanted is unwanted
 
 
-@pytest.mark.slow
 def test_the_adding_stages_say_when_they_fire():
     """``repair_source`` and ``may_complete_symmetry`` are the one home of the firing conditions
     the speculative full-resolution map is decided on: the repair re-solves the mirrored map
@@ -241,6 +240,7 @@ def test_the_adding_stages_say_when_they_fire():
         assert pipeline.repair_source(ctx, pool, options) is None
         assert not pipeline.may_complete_symmetry(pool, options)
         assert pipeline.complete_symmetry(ctx, pool, options, {}) is None
+        assert pipeline.orientation_repair(ctx, pool, options, {}) == []
     def changed(**kw):
         return dataclasses.replace(options, **kw)
 
@@ -250,6 +250,7 @@ def test_the_adding_stages_say_when_they_fire():
     assert not pipeline.may_complete_symmetry([better_mirror], changed(symmetry_completion=False))
 
 
+@pytest.mark.slow
 def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkeypatch):
     """A planted mirrored candidate: a standing figure matched to itself through its front↔back
     reflection (hands and head stay, the feet point backwards). Re-solved with the

@@ -272,18 +272,22 @@ class CandidatePool:
     candidates: list
     errors: list[float]
     errors_sym: list[float]
-    chosen_index: int
-    final_error: float
-    final_error_sym: float
+    chosen_index: int = -1
+    final_error: float = float("nan")
+    final_error_sym: float = float("nan")
+    error: str | None = None
+    """The message of the :class:`~geoshape.errors.GeoshapeError` the method raised (no candidates)."""
 
 
 def candidate_pools(folder, pairs, *, landmarks: int = 1000, seed: int = 0, options: dict | None = None):
     """Yield a :class:`CandidatePool` for each of ``pairs`` (rows of ``read_pairs``; a None row is
     skipped and keeps its position, so landmarks are drawn as the suite draws them). Errors of
     refined maps are taken before the full-resolution stage; on large meshes, where refined maps
-    live on samples, each landmark reads the image of its nearest refinement sample.
-    O(pipeline + candidates × landmarks) per pair."""
+    live on samples, each landmark reads the image of its nearest refinement sample. A pair on
+    which the method raises a :class:`~geoshape.errors.GeoshapeError` yields a pool with no
+    candidates and the message in ``error``. O(pipeline + candidates × landmarks) per pair."""
     from geoshape.correspondence.mesh_matching import correspond
+    from geoshape.errors import GeoshapeError
     from geoshape.geometry.knn import nearest
     from geoshape.io.datasets import scape_feature_points
     from geoshape.metrics.correspondence import geodesic_errors
@@ -292,7 +296,11 @@ def candidate_pools(folder, pairs, *, landmarks: int = 1000, seed: int = 0, opti
     for lp in loaded_pairs(folder, pairs, landmarks=landmarks, seed=seed,
                            feature_points=scape_feature_points(folder)):
         V1, V2, F2, ev = lp.V1, lp.V2, lp.F2, lp.evaluator
-        result = correspond(V1, lp.F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
+        try:
+            result = correspond(V1, lp.F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
+        except GeoshapeError as exc:
+            yield CandidatePool(lp.name, [], [], [], error=str(exc))
+            continue
         final = geodesic_errors(V2, F2, result.p2p_12[lp.src], lp.tgt, lp.sym, evaluator=ev)
         on_rows = result.details["candidate_rows"]
         at = lp.src if on_rows is None else nearest(V1[on_rows], V1[lp.src])[1]
@@ -317,6 +325,9 @@ def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: in
              for p in read_pairs(Path(folder), pairs_file)]
     rows = []
     for pool in candidate_pools(folder, named, landmarks=landmarks, seed=seed, options=options):
+        if pool.error is not None:
+            log(f"== {pool.name}: failed: {pool.error}")
+            continue
         log(f"== {pool.name}: final map {pool.final_error:.4f} direct, "
             f"{pool.final_error_sym:.4f} symmetry-aware")
         log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
@@ -342,8 +353,9 @@ def _run(args: argparse.Namespace) -> int:
     suite_only = [flag for flag, attr in flags if getattr(args, attr, False)]
     if suite_only and not args.suite:
         raise InvalidOptionError(f"{suite_only[0]} needs --suite generalization")
-    if len(suite_only) > 1:
-        raise InvalidOptionError("--sensitivity and --decision-weights write different tables: give one")
+    reports = suite_only + ["--candidates"] * bool(getattr(args, "candidates", None))
+    if len(reports) > 1:
+        raise InvalidOptionError(f"{' and '.join(reports)} each make a different report: give one")
     if getattr(args, "candidates", None):
         return _run_candidates(args)
     if args.suite:

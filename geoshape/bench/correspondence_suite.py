@@ -15,7 +15,9 @@ raised; flips — failures whose symmetry-aware error is under half the direct o
 left/right swap, not a lost map); median seconds per pair. ``--sensitivity`` reruns the
 ``geoshape`` method with each numeric default of
 :class:`~geoshape.correspondence.pipeline.GeoshapeOptions` (``SENSITIVITY_FIELDS``) ×0.5 and ×2
-and reports the mean direct error per set.
+and reports the mean direct error per set. ``--decision-weights`` runs the method once per pair,
+keeps every refined candidate with its errors, and re-takes the decision with each exponent of
+:func:`~geoshape.correspondence.pipeline.decision_score` halved, doubled and left out.
 """
 
 from __future__ import annotations
@@ -345,12 +347,21 @@ def decision_weight_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, tup
 
 def redecided_errors(pools, exponents) -> np.ndarray:
     """Per pool (:class:`~geoshape.bench.correspondence.CandidatePool`), the refined-map error of the
-    candidate :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents``. O(candidates)."""
+    candidate :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents`` (NaN where
+    the method raised). O(candidates)."""
     from geoshape.correspondence.pipeline import GeoshapeOptions, decide
 
     options = GeoshapeOptions()
     return np.array([p.errors[p.candidates.index(decide(p.candidates, options, exponents=exponents))]
-                     for p in pools])
+                     if p.candidates else np.nan for p in pools])
+
+
+def weights_cell(errors: np.ndarray) -> str:
+    """``"mean (failures)"`` of per-pair errors: the mean over pairs that ran, failures counting
+    pairs above ``FAILURE_ERROR`` and pairs on which the method raised (NaN)."""
+    ran = errors[np.isfinite(errors)]
+    failures = int((ran > FAILURE_ERROR).sum()) + int(len(errors) - len(ran))
+    return f"{ran.mean():.4g} ({failures})" if len(ran) else f"— ({failures})"
 
 
 def _run_decision_weights(args, sets, log) -> int:
@@ -375,29 +386,29 @@ def _run_decision_weights(args, sets, log) -> int:
             log(f"[{i + 1}/{len(pairs)}] {pool.name}: {len(pool.candidates)} candidates, chosen "
                 f"{pool.errors[pool.chosen_index]:.4f}, best {min(pool.errors):.4f}")
     # the default exponents must retake the pipeline's own decision on every pair
-    everything = [p for ps in pools.values() for p in ps]
+    ran = [p for ps in pools.values() for p in ps if p.candidates]
     agree = sum(p.candidates.index(decide(p.candidates, options, exponents=DECISION_EXPONENTS))
-                == p.chosen_index for p in everything)
-    total = len(everything)
-
-    def cell(errors: np.ndarray) -> str:
-        return f"{errors.mean():.4g} ({int((errors > FAILURE_ERROR).sum())})"
-
-    body = [[label] + [cell(redecided_errors(pools[s.name], e)) for s, _ in sets]
+                == p.chosen_index for p in ran)
+    crashed = sum(len(ps) for ps in pools.values()) - len(ran)
+    body = [[label] + [weights_cell(redecided_errors(pools[s.name], e)) for s, _ in sets]
             for label, e in decision_weight_variants()]
     body.append(["best candidate in the pool (ceiling)"]
-                + [cell(np.array([min(p.errors) for p in pools[s.name]])) for s, _ in sets])
+                + [weights_cell(np.array([min(p.errors) if p.candidates else np.nan for p in pools[s.name]]))
+                   for s, _ in sets])
+    factors = ", ".join(f"×{f:g}" for f in SENSITIVITY_FACTORS)
+    exps = ", ".join(f"{e:g}" for e in DECISION_EXPONENTS)
     only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
     limit = f" --limit {args.limit}" if args.limit else ""
     text = (f"### 3D correspondence — weights of the decision objective (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --decision-weights{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. One run of "
             f"the geoshape method per pair keeps every refined candidate; the decision (wanted orientation "
-            f"first, then the lowest distortion^a × energy^b ÷ orientation share^c) is re-taken with each "
-            f"exponent ×0.5, ×2 and 0, the others at 1. Cells: mean direct error of the chosen *refined* "
-            f"map (before the full-resolution stage, so a little above the suite's) and, in brackets, "
-            f"failures (pairs above {FAILURE_ERROR}). The default row retakes the pipeline's own choice on "
-            f"{agree} of {total} pairs ({machine_note()}).\n\n"
+            f"first, then the lowest distortion^a × energy^b ÷ orientation share^c; default (a, b, c) = "
+            f"({exps})) is re-taken with each exponent {factors} and 0, the others at their default. Cells: "
+            f"mean direct error of the chosen *refined* map (before the full-resolution stage; the suite "
+            f"scores the final maps) and, in brackets, failures (pairs above {FAILURE_ERROR}, and pairs on "
+            f"which the method raised: {crashed}). The default row retakes the pipeline's own choice on "
+            f"{agree} of {len(ran)} pairs ({machine_note()}).\n\n"
             + markdown_table(["decision exponents", *[s.name for s, _ in sets]], body) + "\n")
     _write(args, DECISION_WEIGHTS_SECTION, text)
     return 0
