@@ -105,14 +105,20 @@ def test_generated_set_is_reused_only_with_the_same_parameters(tmp_path, monkeyp
     assert calls == [(tmp_path / "noniso", {"n_pairs": 4, "seed": 0})]
 
 
-def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
+def _tiny_suite_args(tmp_path, monkeypatch, **flags) -> argparse.Namespace:
+    """The suite's arguments on one tiny generated non-isometric pair, RESULTS.md in ``tmp_path``."""
     spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
                         params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
                                 "resolution": 48})
     monkeypatch.setattr(suite, "DEV_SETS", (spec,))
     monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
-    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
-                              seed=0, sensitivity=False, no_results=False, section=None)
+    return argparse.Namespace(**{"dev_dir": str(tmp_path), "methods": "geoshape", "peer": "none", "limit": 1,
+                                 "landmarks": 50, "seed": 0, "sensitivity": False, "no_results": False,
+                                 "section": None, **flags})
+
+
+def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
+    args = _tiny_suite_args(tmp_path, monkeypatch)
     assert suite.run_suite(args) == 0
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.SECTION} -->" in text and "| tiny | geoshape | 1 |" in text
@@ -120,15 +126,9 @@ def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
 
 
 def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_path, monkeypatch):
-    spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
-                        params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
-                                "resolution": 48})
-    monkeypatch.setattr(suite, "DEV_SETS", (spec,))
     monkeypatch.setattr(suite, "sensitivity_variants",
                         lambda fields: [("n_refine 5 → 2 (×0.5)", {"n_refine": 2})] * ("n_refine" in fields))
-    monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
-    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
-                              seed=0, sensitivity=True, no_results=False, section=None, fields="n_refine")
+    args = _tiny_suite_args(tmp_path, monkeypatch, sensitivity=True, fields="n_refine")
     assert suite.run_suite(args) == 0
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.SENSITIVITY_SECTION} -->" in text
@@ -222,14 +222,7 @@ def test_redecided_errors_follow_the_exponents():
 
 
 def test_decision_weights_run_writes_its_own_section(tmp_path, monkeypatch):
-    spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",
-                        params={"pairs": 1, "seed": 0, "target_vertices": 600, "templates": 1,
-                                "resolution": 48})
-    monkeypatch.setattr(suite, "DEV_SETS", (spec,))
-    monkeypatch.setenv("GEOSHAPE_RESULTS", str(tmp_path / "RESULTS.md"))
-    args = argparse.Namespace(dev_dir=str(tmp_path), methods="geoshape", peer="none", limit=1, landmarks=50,
-                              seed=0, sensitivity=False, decision_weights=True, no_results=False,
-                              section=None)
+    args = _tiny_suite_args(tmp_path, monkeypatch, decision_weights=True)
     assert suite.run_suite(args) == 0
     text = (tmp_path / "RESULTS.md").read_text()
     assert f"<!-- BEGIN {suite.DECISION_WEIGHTS_SECTION} -->" in text
