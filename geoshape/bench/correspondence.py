@@ -256,7 +256,7 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
             results.append(PairResult(m, name, r["errors"],
                                       r["errors_sym_aware"] if lp.sym is not None else r["errors"], seconds))
             sym_mean = r.get("mean_sym_aware", float("nan"))
-            line.append(f"{m} {r['mean']:.3f}/{sym_mean:.3f} {seconds:.1f}s")
+            line.append(f"{m} {r['mean']:.4f}/{sym_mean:.4f} {seconds:.1f}s")
         log(" ".join(line))
     has_sym = any(p.target_symmetric_landmarks is not None for p in pairs) or feature_points is not None
     return results, has_sym
