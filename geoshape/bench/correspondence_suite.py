@@ -251,6 +251,20 @@ def _set_list(sets) -> str:
     return ", ".join(f"{s.name} ({s.pairs_file})" for s, _ in sets)
 
 
+def _sets_flag(args, sets) -> str:
+    """`` --sets A,B`` as typed (empty when every set was run by default)."""
+    return f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+
+
+def _limit_flag(args) -> str:
+    return f" --limit {args.limit}" if args.limit else ""
+
+
+def _mean_failures(mean: float, failures: int) -> str:
+    """A sensitivity cell: ``"mean (failures)"``, the mean to 4 significant digits (— when none ran)."""
+    return f"{mean:.4g} ({failures})" if np.isfinite(mean) else f"— ({failures})"
+
+
 def _write(args, section: str, text: str) -> None:
     from geoshape.bench.results import update_results_section
 
@@ -271,8 +285,7 @@ def _run_table(args, sets, methods, log) -> int:
                                           log=log)
         for m in methods:
             rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
-    limit = f" --limit {args.limit}" if args.limit else ""
-    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+    only, limit = _sets_flag(args, sets), _limit_flag(args)
     # the command as typed: pyFM is the default peer, not a method name
     given = f" --methods {args.methods}" if getattr(args, "methods", None) else ""
     peer = "" if getattr(args, "peer", "pyfm") == "pyfm" else f" --peer {args.peer}"
@@ -301,7 +314,7 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
     from geoshape.bench.results import markdown_table
 
     header = ["geoshape option"] + [s.name for s, _ in sets]
-    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
+    only = _sets_flag(args, sets)
     if getattr(args, "fields", None):
         only += f" --fields {','.join(fields)}"
     body = []
@@ -313,11 +326,9 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
                                               landmarks=args.landmarks, seed=args.seed, options=options,
                                               spread=True, log=log)
             m = set_metrics(results, has_sym)
-            mean = _fmt(m["mean"])
-            mean = f"{mean:.4g}" if isinstance(mean, float) else mean
-            row.append(f"{mean} ({m['failures']})")
+            row.append(_mean_failures(m["mean"], m["failures"]))
         body.append(row)
-    limit = f" --limit {args.limit}" if args.limit else ""
+    limit = _limit_flag(args)
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
@@ -345,15 +356,20 @@ def decision_weight_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, tup
     return out
 
 
-def redecided_errors(pools, exponents) -> np.ndarray:
-    """Per pool (:class:`~geoshape.bench.correspondence.CandidatePool`), the refined-map error of the
-    candidate :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents`` (NaN where
-    the method raised). O(candidates)."""
+def decided_index(pool, exponents) -> int:
+    """Position in ``pool.candidates`` (a non-empty
+    :class:`~geoshape.bench.correspondence.CandidatePool`) of the candidate
+    :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents``. O(candidates)."""
     from geoshape.correspondence.pipeline import GeoshapeOptions, decide
 
-    options = GeoshapeOptions()
-    return np.array([p.errors[p.candidates.index(decide(p.candidates, options, exponents=exponents))]
-                     if p.candidates else np.nan for p in pools])
+    chosen = decide(pool.candidates, GeoshapeOptions(), exponents=exponents)
+    return next(i for i, c in enumerate(pool.candidates) if c is chosen)
+
+
+def redecided_errors(pools, exponents) -> np.ndarray:
+    """Per pool, the refined-map error of the candidate at :func:`decided_index` (NaN where the
+    method raised)."""
+    return np.array([p.errors[decided_index(p, exponents)] if p.candidates else np.nan for p in pools])
 
 
 def weights_cell(errors: np.ndarray) -> str:
@@ -361,7 +377,7 @@ def weights_cell(errors: np.ndarray) -> str:
     pairs above ``FAILURE_ERROR`` and pairs on which the method raised (NaN)."""
     ran = errors[np.isfinite(errors)]
     failures = int((ran > FAILURE_ERROR).sum()) + int(len(errors) - len(ran))
-    return f"{ran.mean():.4g} ({failures})" if len(ran) else f"— ({failures})"
+    return _mean_failures(float(ran.mean()) if len(ran) else float("nan"), failures)
 
 
 def _run_decision_weights(args, sets, log) -> int:
@@ -372,10 +388,9 @@ def _run_decision_weights(args, sets, log) -> int:
     from geoshape.bench.correspondence import candidate_pools, limited_pairs
     from geoshape.bench.experiments._common import machine_note
     from geoshape.bench.results import markdown_table
-    from geoshape.correspondence.pipeline import DECISION_EXPONENTS, GeoshapeOptions, decide
+    from geoshape.correspondence.pipeline import DECISION_EXPONENTS
     from geoshape.io.datasets import read_pairs
 
-    options = GeoshapeOptions()
     pools = {}
     for spec, folder in sets:
         log(f"== {spec.name} ({folder}/{spec.pairs_file})")
@@ -387,8 +402,7 @@ def _run_decision_weights(args, sets, log) -> int:
                 f"{pool.errors[pool.chosen_index]:.4f}, best {min(pool.errors):.4f}")
     # the default exponents must retake the pipeline's own decision on every pair
     ran = [p for ps in pools.values() for p in ps if p.candidates]
-    agree = sum(p.candidates.index(decide(p.candidates, options, exponents=DECISION_EXPONENTS))
-                == p.chosen_index for p in ran)
+    agree = sum(decided_index(p, DECISION_EXPONENTS) == p.chosen_index for p in ran)
     crashed = sum(len(ps) for ps in pools.values()) - len(ran)
     body = [[label] + [weights_cell(redecided_errors(pools[s.name], e)) for s, _ in sets]
             for label, e in decision_weight_variants()]
@@ -397,8 +411,7 @@ def _run_decision_weights(args, sets, log) -> int:
                    for s, _ in sets])
     factors = ", ".join(f"×{f:g}" for f in SENSITIVITY_FACTORS)
     exps = ", ".join(f"{e:g}" for e in DECISION_EXPONENTS)
-    only = f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
-    limit = f" --limit {args.limit}" if args.limit else ""
+    only, limit = _sets_flag(args, sets), _limit_flag(args)
     text = (f"### 3D correspondence — weights of the decision objective (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --decision-weights{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. One run of "
