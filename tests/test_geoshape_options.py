@@ -144,22 +144,22 @@ def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
                          distortion=distortion)
 
     mirrored, direct, other = refined(0.01, 0.1, True), refined(0.03, 0.1, False), refined(0.05, 0.1, False)
-    assert pipeline.decide([mirrored, other, direct], GeoshapeOptions()) is direct
+    assert pipeline.decide([mirrored, other, direct]) is direct
     # distortion × energy: less distortion outweighs a little more energy, and the reverse
     smooth_but_wrong, right = refined(0.02, 0.30, False, "descriptors"), refined(0.03, 0.10, False)
-    assert pipeline.decide([smooth_but_wrong, right], GeoshapeOptions()) is right
+    assert pipeline.decide([smooth_but_wrong, right]) is right
     assert pipeline.decision_score(right) == pytest.approx(0.003)
     # scaling either factor by the same amount for every candidate never changes the choice
     for scale in (0.1, 10.0):
         pool = [refined(c.refined_energy * scale, c.distortion, False) for c in (smooth_but_wrong, right)]
-        assert pipeline.decide(pool, GeoshapeOptions()) is pool[1]
+        assert pipeline.decide(pool) is pool[1]
     # nothing of the wanted orientation: the best mirrored map rather than nothing
-    assert pipeline.decide([mirrored, refined(0.02, 0.1, True)], GeoshapeOptions()) is mirrored
+    assert pipeline.decide([mirrored, refined(0.02, 0.1, True)]) is mirrored
     # a map mirrored on half the surface (orientation near 0, its sign barely right) counts
     # its distortion × energy per share of correctly oriented surface
     half_mirrored = dataclasses.replace(refined(0.02, 0.1, False), orientation_share=0.52)
     kept = dataclasses.replace(refined(0.025, 0.1, False), orientation_share=0.9)
-    assert pipeline.decide([half_mirrored, kept], GeoshapeOptions()) is kept
+    assert pipeline.decide([half_mirrored, kept]) is kept
     assert pipeline.decision_score(kept) == pytest.approx(0.0025 / 0.9)
 
 

@@ -360,9 +360,9 @@ def decided_index(pool, exponents) -> int:
     """Position in ``pool.candidates`` (a non-empty
     :class:`~geoshape.bench.correspondence.CandidatePool`) of the candidate
     :func:`~geoshape.correspondence.pipeline.decide` takes with ``exponents``. O(candidates)."""
-    from geoshape.correspondence.pipeline import GeoshapeOptions, decide
+    from geoshape.correspondence.pipeline import decide
 
-    chosen = decide(pool.candidates, GeoshapeOptions(), exponents=exponents)
+    chosen = decide(pool.candidates, exponents=exponents)
     return next(i for i, c in enumerate(pool.candidates) if c is chosen)
 
 

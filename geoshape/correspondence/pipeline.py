@@ -935,7 +935,7 @@ def decision_score(c: Candidate, exponents: tuple[float, float, float] = DECISIO
     return c.distortion ** a * c.refined_energy ** b / share ** s
 
 
-def decide(refined: list[Candidate], options: GeoshapeOptions, *,
+def decide(refined: list[Candidate], *,
            exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> Candidate:
     """Stage 5: the candidate of lowest :func:`decision_score` (with ``exponents``) among those
     of the wanted orientation (the sign of the orientation score, no threshold), or among all
@@ -1033,7 +1033,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     # stays with the best map so far: its full-resolution map is computed in a child beside
     # them when they can run (each stage's own firing condition) and a child can be forked;
     # otherwise only the chosen map is computed, after the decision
-    likely = decide(refined, options)
+    likely = decide(refined)
     may_add = repair_source(ctx, refined, options) is not None or may_complete_symmetry(refined, options)
     final_likely = p2p = None
     if may_add and can_run_beside():
@@ -1046,7 +1046,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         if completed is not None:
             measure_distortion(ctx, [completed], options, timings)
             refined.append(completed)
-        chosen = decide(refined, options)
+        chosen = decide(refined)
         if final_likely is not None and chosen is likely:
             p2p, final_timings = final_likely.result()
             timings.update(final_timings)
