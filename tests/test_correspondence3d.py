@@ -56,6 +56,31 @@ def test_geodesic_distortion_is_zero_for_an_isometry_and_large_for_a_scramble():
     assert scramble > 0.3
 
 
+def test_stress_weighs_one_large_distance_change_over_many_small_ones():
+    """Power 2 (the stress the decision uses) against power 1 on planted maps: a map that
+    moves one sample far (a limb sent to the other side) against one that moves every
+    sample a little. The mean absolute distortion prefers the first, the stress the second;
+    both are 0 on the identity and the stress is the mean of squared differences."""
+    from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
+
+    V, _, F = figure()
+    m = PreparedMesh(V, F)
+    rows = m.samples(40, 0)
+    solver = m.solver("graph")
+    D = solver.distances(rows)
+    far = rows.copy()
+    far[0] = int(np.argmax(D[0]))  # one sample sent to the far end of the figure
+    near = np.array([int(np.argsort(D[a])[3]) for a in range(len(rows))])  # each one 3 vertices off
+    (mean_far, mean_near), (stress_far, stress_near) = (
+        geodesic_distortion(m, m, rows, far, near, power=p) for p in (1, 2))
+    assert mean_far < mean_near and stress_far > stress_near
+    assert geodesic_distortion(m, m, rows, rows, power=2) == pytest.approx([0.0], abs=1e-12)
+    D1 = D[:, rows] / np.median(D[:, rows])
+    D2 = solver.distances(far)[:, far]
+    expected = np.mean((D1 - D2 / np.median(D2)) ** 2)
+    assert stress_far == pytest.approx(expected, rel=1e-9)
+
+
 def test_geodesic_distortion_shares_one_dijkstra_among_maps_with_common_images():
     from geoshape.correspondence.mesh_matching import PreparedMesh, geodesic_distortion
 

@@ -214,7 +214,8 @@ class Candidate:
     symmetry_completed: bool = False
     """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
     distortion: float | None = None
-    """Mean normalised geodesic distortion of the refined map (:func:`geodesic_distortion`)."""
+    """Geodesic stress of the refined map: its mean squared normalised geodesic distortion
+    (:func:`geodesic_distortion` with ``power`` :data:`DECISION_DISTORTION_POWER`)."""
 
     @property
     def cost(self) -> float | None:
@@ -810,9 +811,10 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
 
 
 def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images,
-                        within: np.ndarray | None = None) -> list[float]:
-    """For each map, the mean |d1(i, j) − d2(T i, T j)| over pairs of ``rows1`` (each mesh's
-    distances divided by their median, so uniform scale does not count). Each of ``images``
+                        within: np.ndarray | None = None, power: int = 1) -> list[float]:
+    """For each map, the mean |d1(i, j) − d2(T i, T j)|^``power`` over pairs of ``rows1`` (each
+    mesh's distances divided by their median, so uniform scale does not count): power 1 is
+    the mean absolute distortion, power 2 the stress (mean squared). Each of ``images``
     gives, at position ``a``, the vertex of mesh 2 matched to ``rows1[a]``. Graph Dijkstra
     runs once from ``rows1`` (cached on mesh 1) and once from each distinct image:
     O((s + u) n log n) for s rows and u distinct images.
@@ -842,7 +844,7 @@ def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *
     for i in range(len(targets)):
         pos = where[i * len(rows1):(i + 1) * len(rows1)]
         D2 = D2_all[np.ix_(pos, pos)]
-        out.append(float(np.mean(np.abs(D1 - D2 / max(float(np.median(D2)), 1e-300)))))
+        out.append(float(np.mean(np.abs(D1 - D2 / max(float(np.median(D2)), 1e-300)) ** power)))
     return out
 
 
@@ -895,18 +897,31 @@ def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.n
     return rows, (slice(0, len(rows)) if ctx.large else rows)
 
 
+#: Power of the refined maps' geodesic distortion in the decision (:func:`measure_distortion`):
+#: 2, the stress (mean squared distortion), the isometry measure of metric MDS. Squaring
+#: weighs a few large distance changes — a limb or half the body sent to the other side,
+#: as in a half-turn — over the spread of small ones every refined map has from remeshing
+#: and sampling; the mean absolute distortion (power 1) let that spread hide the half-turns
+#: of remeshed SCAPE and TOSCA. Screening keeps power 1 (:func:`measure_coarse_distortion`):
+#: coarse maps land on 500 samples, and there the small spread is most of the signal.
+DECISION_DISTORTION_POWER = 2
+
+
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
     """Fill ``distortion`` of every refined candidate that lacks it: :func:`geodesic_distortion`
-    on the first ``distortion_samples`` screening samples of mesh 1 (large meshes: refinement
-    samples, with which the maps are aligned)."""
+    with power :data:`DECISION_DISTORTION_POWER` (the stress) on the first
+    ``distortion_samples`` screening samples of mesh 1 (large meshes: refinement samples,
+    with which the maps are aligned)."""
     todo = [c for c in candidates if c.distortion is None]
     if not todo:
         return
     t = time.perf_counter()
     rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
     images = [c.refined_map[at] for c in todo]
-    for c, d in zip(todo, geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2), strict=True):
+    stresses = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
+                                   power=DECISION_DISTORTION_POWER)
+    for c, d in zip(todo, stresses, strict=True):
         c.distortion = d
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 
@@ -919,12 +934,12 @@ DECISION_EXPONENTS = (1.0, 1.0, 1.0)
 
 def decision_score(c: Candidate, exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> float:
     """The one objective every refined candidate is ranked by (lower is better): geodesic
-    distortion × functional map energy ÷ the share of the surface whose orientation the map
+    stress × functional map energy ÷ the share of the surface whose orientation the map
     keeps as asked (``orientation_share``), each factor raised to its ``exponents`` entry.
 
     Every factor is unit-free and at its best for an orientation-keeping isometry (0, 0 and
-    1): the distortion compares normalised geodesic distances on sample pairs (sees which
-    parts go where), the energy is the distance of the refined functional map from
+    1): the stress (``Candidate.distortion``) compares normalised geodesic distances on
+    sample pairs (sees which parts go where), the energy is the distance of the refined functional map from
     orthonormality (sees the whole spectrum, e.g. a front↔back mirror that distortion alone
     can miss), the share sees a map mirrored on part of the surface (orientation near 0)
     that the sign test of :func:`decide` lets through. A product weighs a relative change of
