@@ -74,7 +74,7 @@ def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
     ("symmetry_completion", "yes"), ("descriptor_map", 1), ("distortion_samples", 0),
     ("distortion_samples", 1.5), ("descriptor_k", "30"), ("reorder", "random"),
     ("distinct_spacing", -0.5), ("distinct_spacing", float("nan")), ("distinct_spacing", "1"),
-    ("distinct_spacing", True),
+    ("distinct_spacing", True), ("distortion_power", 0.25), ("distortion_power", "2"),
 ])
 def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
     V, F = _octahedron()
@@ -95,7 +95,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 24
+    assert len(GeoshapeOptions.names()) == 25
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),

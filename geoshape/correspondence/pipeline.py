@@ -123,6 +123,13 @@ class GeoshapeOptions:
     """Basis size of the descriptor functional map (skipped below 3 after clipping to ``lb_k``)."""
     distortion_samples: int = field(default=128, metadata=_int(1))
     """Farthest samples of mesh 1 whose pairwise geodesics measure a refined map's distortion."""
+    # Why 2: squaring weighs a few large distance changes — a limb or half the body sent to
+    # the other side, as in a half-turn — over the spread of small ones every refined map has
+    # from remeshing and sampling; power 1 let that spread hide the half-turns of remeshed
+    # SCAPE and TOSCA. Screening keeps power 1: coarse maps land on 500 samples, where the
+    # small spread is most of the signal.
+    distortion_power: float = field(default=2.0, metadata=_float(0.5))
+    """Power p of the decision's distortion, the mean of |distance change|^p (2: the stress of metric MDS)."""
     orientation_repair: bool = field(default=True, metadata=_BOOL)
     """Add the best mirrored map re-solved with the orientation term, pinned by its ends."""
     repair_landmarks: int = field(default=8, metadata=_int(1))
@@ -215,7 +222,7 @@ class Candidate:
     """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
     distortion: float | None = None
     """Geodesic stress of the refined map: its mean squared normalised geodesic distortion
-    (:func:`geodesic_distortion` with ``power`` :data:`DECISION_DISTORTION_POWER`)."""
+    (:func:`geodesic_distortion` with ``power`` ``distortion_power``)."""
 
     @property
     def cost(self) -> float | None:
@@ -811,7 +818,7 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
 
 
 def geodesic_distortion(m1: PreparedMesh, m2: PreparedMesh, rows1: np.ndarray, *images,
-                        within: np.ndarray | None = None, power: int = 1) -> list[float]:
+                        within: np.ndarray | None = None, power: float = 1) -> list[float]:
     """For each map, the mean |d1(i, j) − d2(T i, T j)|^``power`` over pairs of ``rows1`` (each
     mesh's distances divided by their median, so uniform scale does not count): power 1 is
     the mean absolute distortion, power 2 the stress (mean squared). Each of ``images``
@@ -897,20 +904,10 @@ def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.n
     return rows, (slice(0, len(rows)) if ctx.large else rows)
 
 
-#: Power of the refined maps' geodesic distortion in the decision (:func:`measure_distortion`):
-#: 2, the stress (mean squared distortion), the isometry measure of metric MDS. Squaring
-#: weighs a few large distance changes — a limb or half the body sent to the other side,
-#: as in a half-turn — over the spread of small ones every refined map has from remeshing
-#: and sampling; the mean absolute distortion (power 1) let that spread hide the half-turns
-#: of remeshed SCAPE and TOSCA. Screening keeps power 1 (:func:`measure_coarse_distortion`):
-#: coarse maps land on 500 samples, and there the small spread is most of the signal.
-DECISION_DISTORTION_POWER = 2
-
-
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
     """Fill ``distortion`` of every refined candidate that lacks it: :func:`geodesic_distortion`
-    with power :data:`DECISION_DISTORTION_POWER` (the stress) on the first
+    with power ``distortion_power`` (2: the stress) on the first
     ``distortion_samples`` screening samples of mesh 1 (large meshes: refinement samples,
     with which the maps are aligned)."""
     todo = [c for c in candidates if c.distortion is None]
@@ -920,7 +917,7 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
     images = [c.refined_map[at] for c in todo]
     stresses = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
-                                   power=DECISION_DISTORTION_POWER)
+                                   power=options.distortion_power)
     for c, d in zip(todo, stresses, strict=True):
         c.distortion = d
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
