@@ -125,9 +125,10 @@ class GeoshapeOptions:
     """Farthest samples of mesh 1 whose pairwise geodesics measure a refined map's distortion."""
     # Why 2: squaring weighs a few large distance changes — a limb or half the body sent to
     # the other side, as in a half-turn — over the spread of small ones every refined map has
-    # from remeshing and sampling; power 1 let that spread hide the half-turns of remeshed
-    # SCAPE and TOSCA. Screening keeps power 1: coarse maps land on 500 samples, where the
-    # small spread is most of the signal.
+    # from remeshing and sampling, and (stress = RMS²) doubles the distortion's weight against
+    # the energy in decision_score; power 1 let the half-turns of remeshed SCAPE and TOSCA
+    # through, and so does the RMS at equal weight. Screening keeps power 1: coarse maps land
+    # on 500 samples, where the small spread is most of the signal.
     distortion_power: float = field(default=2.0, metadata=_float(0.5))
     """Power p of the decision's distortion, the mean of |distance change|^p (2: the stress of metric MDS)."""
     orientation_repair: bool = field(default=True, metadata=_BOOL)
@@ -221,8 +222,8 @@ class Candidate:
     symmetry_completed: bool = False
     """The map is a mirrored map composed with mesh 2's own left–right symmetry."""
     distortion: float | None = None
-    """Geodesic stress of the refined map: its mean squared normalised geodesic distortion
-    (:func:`geodesic_distortion` with ``power`` ``distortion_power``)."""
+    """Geodesic distortion of the refined map: its mean normalised geodesic distortion to the
+    power ``distortion_power`` (:func:`geodesic_distortion`; default 2, the stress)."""
 
     @property
     def cost(self) -> float | None:
@@ -916,9 +917,9 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     t = time.perf_counter()
     rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
     images = [c.refined_map[at] for c in todo]
-    stresses = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
-                                   power=options.distortion_power)
-    for c, d in zip(todo, stresses, strict=True):
+    distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
+                                      power=options.distortion_power)
+    for c, d in zip(todo, distortions, strict=True):
         c.distortion = d
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 
