@@ -87,6 +87,60 @@ def test_zoomout_on_samples_recovers_an_isometry():
     assert np.mean(p2p == truth) >= 0.95  # measured: 99 % exact
 
 
+def test_soft_read_off_keeps_an_isometry_and_rejects_a_bad_temperature():
+    from geoshape.correspondence.fmaps.zoomout import soft_read_off
+    from geoshape.geometry.mesh import vertex_rings
+
+    V, V2, truth, b1, b2 = zoomout_setup()
+    F2 = moved_permuted_copy(V, figure()[2])[1]
+    rings = vertex_rings(F2, len(V2), 3)
+    p2p = soft_read_off(b1, b2, truth, V2, rings, 1.0)
+    assert np.mean(p2p == truth) >= 0.99  # measured: 100 % (each vertex is at distance 0 from its image)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(InvalidOptionError, match="temperature > 0"):
+            soft_read_off(b1, b2, truth, V2, rings, bad)
+
+
+def planted_soft_case():
+    """One query at 0 on a spectral line; candidates (spectral coordinate, position on a line):
+    A (1.0, 0), B (−1.05, 2), C (1.1, 1), D (10, 5), all in the one row of a csr pattern. A is
+    the nearest on the spectral line, but B and C are almost as near and C sits at the middle
+    of the three positions."""
+    queries = np.zeros((1, 1))
+    points = np.array([[1.0], [-1.05], [1.1], [10.0]])
+    positions = np.array([[0.0, 0, 0], [2.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    indptr, indices = np.array([0, 4, 4, 4, 4]), np.array([0, 1, 2, 3])
+    return queries, points, indptr, indices, positions
+
+
+def test_soft_kernel_takes_the_candidate_nearest_the_weighted_mean():
+    from geoshape.geometry._kernels import soft_nearest_in_rows
+
+    queries, points, indptr, indices, positions = planted_soft_case()
+    row = np.array([0])
+
+    def soft(q, p, t):
+        return soft_nearest_in_rows(q, p, indptr, indices, row, positions, t)[0]
+
+    assert soft(queries, points, 1.0) == 2  # C, where the nearest neighbour takes A
+    assert soft(queries, points, 1e-3) == 0  # a cold temperature leaves the weight on the nearest
+    for scale in (1e-3, 1e3):  # unit-free: scaling the spectral coordinates changes nothing
+        assert soft(scale * queries, scale * points, 1.0) == 2
+    assert soft(np.array([[-1.05]]), points, 1.0) == 1  # a query on a candidate takes it
+
+
+def test_vertex_rings_of_a_strip():
+    from geoshape.geometry.mesh import vertex_rings
+
+    F = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4]])  # a strip 0-1-2-3-4-5
+    assert vertex_rings(F, 7, 0).toarray().tolist() == np.eye(7, dtype=bool).tolist()
+    assert sorted(vertex_rings(F, 7, 1)[0].indices) == [0, 1, 2]
+    assert sorted(vertex_rings(F, 7, 2)[0].indices) == [0, 1, 2, 3, 4]
+    assert sorted(vertex_rings(F, 7, 2)[6].indices) == [6]  # an isolated vertex: itself
+    with pytest.raises(InvalidOptionError, match="rings"):
+        vertex_rings(F, 7, -1)
+
+
 def test_zoomout_energy_tells_a_good_map_from_a_random_one():
     from geoshape.correspondence.fmaps.zoomout import zoomout
 

@@ -75,6 +75,7 @@ def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
     ("distortion_samples", 1.5), ("descriptor_k", "30"), ("reorder", "random"),
     ("distinct_spacing", -0.5), ("distinct_spacing", float("nan")), ("distinct_spacing", "1"),
     ("distinct_spacing", True), ("distortion_power", 0.25), ("distortion_power", "2"),
+    ("soft_temperature", -0.5), ("soft_temperature", float("inf")), ("soft_rings", 0), ("soft_rings", 2.5),
 ])
 def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
     V, F = _octahedron()
@@ -95,7 +96,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 25
+    assert len(GeoshapeOptions.names()) == 27
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),

@@ -124,3 +124,61 @@ def nearest_among_candidates(queries, points, candidates):
                 best, arg = s, j
         out[i] = arg
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temperature):
+    """For each row ``i`` of ``queries (q, k)`` and its candidates, the entries of row
+    ``rows[i]`` of a csr pattern (``indptr``, ``indices``; e.g. the ring around a current
+    image): the mean of the candidates' ``positions (n, d)``, each weighted
+    ``exp(-(s_t − s_min) / (temperature · s_min))`` where ``s_t`` is the squared distance from
+    the query to the candidate's row of ``points (n, k)`` and ``s_min`` the smallest; then the
+    candidate whose position is nearest that mean (the first of equals): ``(q,)`` int64. A
+    query at distance 0 from a candidate takes it. The temperature is relative to ``s_min``,
+    so the weights have no unit.
+
+    O(q c (k + d)) time for rows of c entries, O(c) memory per query.
+    """
+    q, k = queries.shape
+    dim = positions.shape[1]
+    out = np.empty(q, np.int64)
+    longest = 0
+    for r in range(len(indptr) - 1):
+        longest = max(longest, indptr[r + 1] - indptr[r])
+    s = np.empty(longest)
+    mean = np.empty(dim)
+    for i in range(q):
+        lo, hi = indptr[rows[i]], indptr[rows[i] + 1]
+        s_min, arg = np.inf, rows[i]
+        for t in range(lo, hi):
+            j = indices[t]
+            acc = 0.0
+            for a in range(k):
+                d = points[j, a] - queries[i, a]
+                acc += d * d
+            s[t - lo] = acc
+            if acc < s_min:
+                s_min, arg = acc, j
+        if not s_min > 0.0:
+            out[i] = arg
+            continue
+        scale = 1.0 / (temperature * s_min)
+        total = 0.0
+        mean[:] = 0.0
+        for t in range(lo, hi):
+            w = np.exp(-(s[t - lo] - s_min) * scale)
+            total += w
+            j = indices[t]
+            for a in range(dim):
+                mean[a] += w * positions[j, a]
+        best = np.inf
+        for t in range(lo, hi):
+            j = indices[t]
+            acc = 0.0
+            for a in range(dim):
+                d = positions[j, a] - mean[a] / total
+                acc += d * d
+            if acc < best:
+                best, arg = acc, j
+        out[i] = arg
+    return out

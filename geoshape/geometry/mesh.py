@@ -12,6 +12,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from geoshape.errors import InvalidOptionError
 from geoshape.io.validate import check_mesh
 
 __all__ = [
@@ -282,3 +283,36 @@ def edge_graph(V, F, *, raw_lengths: bool = False) -> sp.csr_matrix:
     """
     V, F = check_mesh(V, F, allow_no_faces=True, min_vertices=1)
     return edges_graph(V, unique_edges(F), raw_lengths=raw_lengths)
+
+
+def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
+    """Which vertices are at most ``rings`` edges from each vertex (itself included): an
+    ``(n, n)`` boolean csr pattern, row ``i`` listing the ``rings``-ring of vertex ``i``.
+
+    Parameters
+    ----------
+    F : (m, 3) int (may be empty: each vertex's ring is itself)
+    n : int, the vertex count
+    rings : int, at least 0
+
+    Notes
+    -----
+    ``rings`` sparse products with the adjacency: O(n r̄ d) time for rings of r̄ vertices and
+    valence d; O(n r̄) memory (about 37 vertices per 3-ring on a regular triangle mesh).
+
+    Examples
+    --------
+    >>> vertex_rings([[0, 1, 2], [1, 2, 3]], 5, 1).sum(axis=1).A1.tolist()
+    [3, 4, 4, 3, 1]
+    """
+    if rings < 0:
+        raise InvalidOptionError(f"rings must be at least 0, got {rings!r}")
+    E = unique_edges(np.asarray(F, dtype=np.int64).reshape(-1, 3), n)
+    step = sp.coo_matrix((np.ones(2 * len(E), dtype=bool),
+                          (np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]]))),
+                         shape=(n, n)).tocsr() + sp.identity(n, dtype=bool, format="csr")
+    ring = sp.identity(n, dtype=bool, format="csr")
+    for _ in range(rings):
+        ring = ring @ step
+    ring.sort_indices()
+    return ring

@@ -20,6 +20,7 @@ sizes s1, s2 (blocked BLAS), final step O(n1 n2 k).
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.knn import k_nearest, nearest
@@ -181,3 +182,32 @@ def spatial_neighbours(V: np.ndarray, n_candidates: int = 64, rows: np.ndarray |
     (default: every vertex), nearest first: ``(len(rows), c)`` int64. KD-tree, O(r c log n)."""
     V = np.asarray(V, dtype=np.float64)
     return k_nearest(V, V if rows is None else V[rows], n_candidates)[1]
+
+
+
+def soft_read_off(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, V2: np.ndarray,
+                  rings2: sp.csr_matrix, temperature: float) -> np.ndarray:
+    """One more ZoomOut step whose point map is read off softly: ``p2p_12 (n1,)`` refined.
+
+    The functional map ``C_21`` of ``p2p_12`` on the whole bases; then for each vertex of
+    mesh 1 the vertices of mesh 2 in the ring around its current image (row ``p2p_12[i]`` of
+    ``rings2``, e.g. :func:`~geoshape.geometry.mesh.vertex_rings`) are weighted by how near
+    they are in the aligned spectral bases (:func:`aligned_bases`), relative to the nearest
+    (weight ``exp(-(s − s_min) / (temperature · s_min))`` of squared distances ``s``), and the
+    vertex taken is the one nearest their weighted mean position. A nearest neighbour keeps
+    the noise of the highest basis functions (a vertex jumps between rows about as near);
+    the mean over the near ones averages it out. Rings, not spatial neighbours: a mean over
+    two limbs that touch would land between them.
+    ``temperature`` has no unit (> 0; 1: a candidate twice as far in squared distance as the
+    nearest weighs e⁻¹ of it). O(n1 k² + n1 c (k + 3)) time for rings of c vertices.
+    """
+    from geoshape.geometry._kernels import soft_nearest_in_rows
+
+    if not temperature > 0:
+        raise InvalidOptionError(f"the soft read-off needs a temperature > 0, got {temperature!r}")
+    k = min(basis1.k, basis2.k)
+    p2p = np.asarray(p2p_12, dtype=np.int64)
+    E1, E2 = aligned_bases(basis1, basis2, functional_map_from_p2p(basis1, basis2, p2p, k, k))
+    return soft_nearest_in_rows(np.ascontiguousarray(E1), np.ascontiguousarray(E2),
+                                rings2.indptr.astype(np.int64), rings2.indices.astype(np.int64), p2p,
+                                np.ascontiguousarray(V2, dtype=np.float64), float(temperature))
