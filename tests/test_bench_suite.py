@@ -62,8 +62,8 @@ def test_table_has_a_row_per_set_and_method():
 def test_sensitivity_variants_cover_the_required_defaults():
     variants = suite.sensitivity_variants()
     changed = [next(iter(o)) for _, o in variants]
-    for name in ("distortion_samples", "distortion_power", "soft_temperature", "n_keep", "n_refine", "lb_k",
-                 "zoomout_samples", "descriptor_k"):
+    for name in ("distortion_samples", "distortion_power", "soft_temperature", "soft_rings", "n_keep",
+                 "n_refine", "lb_k", "zoomout_samples", "descriptor_k"):
         assert changed.count(name) == 2
     assert ("lb_k 60 → 30 (×0.5)", {"lb_k": 30}) in variants
     assert ("distortion_power 2.0 → 1.0 (×0.5)", {"distortion_power": 1.0}) in variants
