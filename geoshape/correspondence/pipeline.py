@@ -980,9 +980,12 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     ``final_k`` in steps of ``final_step`` (precision: more basis functions resolve finer
     detail than the samples can). Each read-off is O(n1 n2 k), or O(n1 c k) with c = 64
     spatial candidates around the current image above ``BRUTE_FORCE_MAX`` target vertices.
-    In large-mesh mode each vertex starts from its nearest sample's image. Last, with a
-    ``soft_temperature`` > 0, one more step at ``final_k`` read off softly
-    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O(n1 k² + n1 c k)).
+    In large-mesh mode each vertex starts from its nearest sample's image. The final ZoomOut
+    ends, with a ``soft_temperature`` > 0, with one more step at ``final_k`` read off softly
+    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O(n1 k² + n1 c k)); meshes
+    too small for a final ZoomOut (``final_k`` clipped to ``lb_k`` by
+    :data:`FINAL_VERTICES_PER_EIGENPAIR`) skip both: there a ring spans more than the basis
+    resolves, and on a 500-vertex pair the soft step raised the error of a near-exact map.
     """
     from geoshape.correspondence.fmaps.zoomout import (
         BRUTE_FORCE_MAX,
@@ -1015,14 +1018,12 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
             p2p = full_resolution_map(B1, B2, functional_map_from_p2p(B1, B2, p2p, k, k), p2p, ctx.m2.V,
                                       neighbours=near)
         timings["final_zoomout"] = time.perf_counter() - t
-    if options.soft_temperature > 0:
-        t = time.perf_counter()
-        k = max(lb_k, ctx.final_k)
-        B1, B2 = ctx.m1.laplacian(k), ctx.m2.laplacian(k)
-        rings = ctx.m2.cached(("vertex_rings", options.soft_rings),
-                              lambda: vertex_rings(ctx.m2.F, ctx.m2.n, options.soft_rings))
-        p2p = soft_read_off(B1, B2, p2p, ctx.m2.V, rings, options.soft_temperature)
-        timings["soft_read_off"] = time.perf_counter() - t
+        if options.soft_temperature > 0:  # the final ZoomOut's last step, read off softly
+            t = time.perf_counter()
+            rings = ctx.m2.cached(("vertex_rings", options.soft_rings),
+                                  lambda: vertex_rings(ctx.m2.F, ctx.m2.n, options.soft_rings))
+            p2p = soft_read_off(B1, B2, p2p, ctx.m2.V, rings, options.soft_temperature)
+            timings["soft_read_off"] = time.perf_counter() - t
     return p2p
 
 
