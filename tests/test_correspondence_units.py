@@ -96,6 +96,13 @@ def test_soft_read_off_keeps_an_isometry_and_rejects_a_bad_temperature():
     rings = vertex_rings(F2, len(V2), 3)
     p2p = soft_read_off(b1, b2, truth, V2, rings, 1.0)
     assert np.mean(p2p == truth) >= 0.99  # measured: 100 % (each vertex is at distance 0 from its image)
+    # every image moved to a random vertex of its 1-ring (13 % stay right): the step brings
+    # most back (measured 76 %; an absurd temperature 1e9, which averages the whole ring, 12 %)
+    one_ring = vertex_rings(F2, len(V2), 1)
+    rng = np.random.default_rng(0)
+    noisy = np.array([rng.choice(one_ring.indices[one_ring.indptr[t]:one_ring.indptr[t + 1]]) for t in truth])
+    assert np.mean(noisy == truth) < 0.2
+    assert np.mean(soft_read_off(b1, b2, noisy, V2, rings, 0.5) == truth) >= 0.6
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(InvalidOptionError, match="temperature > 0"):
             soft_read_off(b1, b2, truth, V2, rings, bad)
@@ -109,7 +116,8 @@ def planted_soft_case():
     queries = np.zeros((1, 1))
     points = np.array([[1.0], [-1.05], [1.1], [10.0]])
     positions = np.array([[0.0, 0, 0], [2.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
-    indptr, indices = np.array([0, 4, 4, 4, 4]), np.array([0, 1, 2, 3])
+    # the candidates' row is row 1, after a row of two other entries (offsets are read right)
+    indptr, indices = np.array([0, 2, 6, 6, 6]), np.array([3, 3, 0, 1, 2, 3])
     return queries, points, indptr, indices, positions
 
 
@@ -117,7 +125,7 @@ def test_soft_kernel_takes_the_candidate_nearest_the_weighted_mean():
     from geoshape.geometry._kernels import soft_nearest_in_rows
 
     queries, points, indptr, indices, positions = planted_soft_case()
-    row = np.array([0])
+    row = np.array([1])
 
     def soft(q, p, t):
         return soft_nearest_in_rows(q, p, indptr, indices, row, positions, t)[0]
@@ -127,6 +135,7 @@ def test_soft_kernel_takes_the_candidate_nearest_the_weighted_mean():
     for scale in (1e-3, 1e3):  # unit-free: scaling the spectral coordinates changes nothing
         assert soft(scale * queries, scale * points, 1.0) == 2
     assert soft(np.array([[-1.05]]), points, 1.0) == 1  # a query on a candidate takes it
+    assert soft(queries, points, 1e-310) == 0  # a temperature too small to divide by: the nearest
 
 
 def test_vertex_rings_of_a_strip():
@@ -139,6 +148,8 @@ def test_vertex_rings_of_a_strip():
     assert sorted(vertex_rings(F, 7, 2)[6].indices) == [6]  # an isolated vertex: itself
     with pytest.raises(InvalidOptionError, match="rings"):
         vertex_rings(F, 7, -1)
+    with pytest.raises(InvalidOptionError, match="vertex 5"):
+        vertex_rings(F, 5, 1)  # a face names a vertex the count leaves out
 
 
 def test_zoomout_energy_tells_a_good_map_from_a_random_one():

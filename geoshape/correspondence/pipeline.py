@@ -107,7 +107,7 @@ class GeoshapeOptions:
     # on every pair of the five 5k/12k dev sets it had the lowest worst-case ratio of mean error
     # with/without (docs/correspondence3d.md); colder tends to the nearest neighbour.
     soft_temperature: float = field(default=0.5, metadata=_float(0.0))
-    """Temperature of the final soft read-off, relative to each vertex's best spectral residual (0: off)."""
+    """Temperature of the final ZoomOut's soft last step, relative to a vertex's best residual (0: off)."""
     # Why rings, not spatial neighbours: a mean over two limbs that touch lands between them
     # (64 spatial neighbours raised some TOSCA pairs' error by 20 %). Why 3: about 37 vertices,
     # one basis function's scale at 100 eigenpairs on 5k–12k vertices; 2 gains less on SCAPE,
@@ -982,7 +982,7 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     spatial candidates around the current image above ``BRUTE_FORCE_MAX`` target vertices.
     In large-mesh mode each vertex starts from its nearest sample's image. The final ZoomOut
     ends, with a ``soft_temperature`` > 0, with one more step at ``final_k`` read off softly
-    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O(n1 k² + n1 c k)); meshes
+    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O((n1 + n2) k² + n1 c k)); meshes
     too small for a final ZoomOut (``final_k`` clipped to ``lb_k`` by
     :data:`FINAL_VERTICES_PER_EIGENPAIR`) skip both: there a ring spans more than the basis
     resolves, and on a 500-vertex pair the soft step raised the error of a near-exact map.

@@ -159,10 +159,11 @@ def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temp
             s[t - lo] = acc
             if acc < s_min:
                 s_min, arg = acc, j
-        if not s_min > 0.0:
+        spread = temperature * s_min
+        if not spread > 0.0:  # a query on a candidate, or a temperature too small to divide by
             out[i] = arg
             continue
-        scale = 1.0 / (temperature * s_min)
+        scale = 1.0 / spread
         total = 0.0
         mean[:] = 0.0
         for t in range(lo, hi):

@@ -307,7 +307,11 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
     """
     if rings < 0:
         raise InvalidOptionError(f"rings must be at least 0, got {rings!r}")
-    E = unique_edges(np.asarray(F, dtype=np.int64).reshape(-1, 3), n)
+    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
+    if F.size and (F.max() >= n or F.min() < 0):
+        bad = F.max() if F.max() >= n else F.min()
+        raise InvalidOptionError(f"vertex_rings: a face names vertex {bad}, outside the {n} vertices")
+    E = unique_edges(F, n)
     step = sp.coo_matrix((np.ones(2 * len(E), dtype=bool),
                           (np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]]))),
                          shape=(n, n)).tocsr() + sp.identity(n, dtype=bool, format="csr")

@@ -199,7 +199,7 @@ def soft_read_off(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.nda
     the mean over the near ones averages it out. Rings, not spatial neighbours: a mean over
     two limbs that touch would land between them.
     ``temperature`` has no unit (> 0; 1: a candidate twice as far in squared distance as the
-    nearest weighs e⁻¹ of it). O(n1 k² + n1 c (k + 3)) time for rings of c vertices.
+    nearest weighs e⁻¹ of it). O((n1 + n2) k² + n1 c (k + 3)) time for rings of c vertices.
     """
     from geoshape.geometry._kernels import soft_nearest_in_rows
 
