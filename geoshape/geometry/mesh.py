@@ -251,10 +251,15 @@ def edges_graph(V: np.ndarray, E: np.ndarray, *, raw_lengths: bool = False) -> s
     w = np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)
     if not raw_lengths:
         w = np.maximum(w, _length_eps(V))
+    return _symmetric_edge_matrix(E, n, w)
+
+
+def _symmetric_edge_matrix(E: np.ndarray, n: int, values: np.ndarray) -> sp.csr_matrix:
+    """``(n, n)`` csr with ``values[e]`` at both (i, j) and (j, i) of each unique edge ``E[e]``."""
     rows = np.concatenate([E[:, 0], E[:, 1]])
     cols = np.concatenate([E[:, 1], E[:, 0]])
     # E holds unique pairs i < j, so no entry is summed twice
-    return sp.coo_matrix((np.concatenate([w, w]), (rows, cols)), shape=(n, n)).tocsr()
+    return sp.coo_matrix((np.concatenate([values, values]), (rows, cols)), shape=(n, n)).tocsr()
 
 
 def edge_graph(V, F, *, raw_lengths: bool = False) -> sp.csr_matrix:
@@ -312,10 +317,9 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
         bad = F.max() if F.max() >= n else F.min()
         raise InvalidOptionError(f"vertex_rings: a face names vertex {bad}, outside the {n} vertices")
     E = unique_edges(F, n)
-    step = sp.coo_matrix((np.ones(2 * len(E), dtype=bool),
-                          (np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]]))),
-                         shape=(n, n)).tocsr() + sp.identity(n, dtype=bool, format="csr")
-    ring = sp.identity(n, dtype=bool, format="csr")
+    identity = sp.identity(n, dtype=bool, format="csr")
+    step = _symmetric_edge_matrix(E, n, np.ones(len(E), dtype=bool)) + identity
+    ring = identity
     for _ in range(rings):
         ring = ring @ step
     ring.sort_indices()

@@ -184,7 +184,6 @@ def spatial_neighbours(V: np.ndarray, n_candidates: int = 64, rows: np.ndarray |
     return k_nearest(V, V if rows is None else V[rows], n_candidates)[1]
 
 
-
 def soft_read_off(basis1: LaplacianBasis, basis2: LaplacianBasis, p2p_12: np.ndarray, V2: np.ndarray,
                   rings2: sp.csr_matrix, temperature: float) -> np.ndarray:
     """One more ZoomOut step whose point map is read off softly: ``p2p_12 (n1,)`` refined.
