@@ -107,6 +107,25 @@ def test_generated_set_is_reused_only_with_the_same_parameters(tmp_path, monkeyp
     assert calls == [(tmp_path / "noniso", {"n_pairs": 4, "seed": 0})]
 
 
+def test_a_remeshed_copy_of_a_generated_set_generates_its_source_first(tmp_path, monkeypatch):
+    import geoshape_datasets_gen.nonisometric as noniso_gen
+    import geoshape_datasets_gen.remesh as remesh_gen
+
+    source = suite.DevSet("noniso", "pairs.csv", generator="nonisometric", params={"pairs": 2, "seed": 0})
+    copy = suite.DevSet("noniso_r", "pairs.csv", generator="remesh",
+                        params={"dataset": "noniso", "pairs": 2, "vertices": 700, "seed": 0})
+    monkeypatch.setattr(suite, "DEV_SETS", (source, copy))
+    calls = []
+    monkeypatch.setattr(noniso_gen, "write_nonisometric_set", lambda out, **kw: calls.append(("noniso", out)))
+    monkeypatch.setattr(remesh_gen, "write_remeshed_set",
+                        lambda dataset, out, **kw: calls.append(("remesh", dataset, out, kw)))
+    assert suite.prepare_set(copy, tmp_path, log=lambda _t: None) == tmp_path / "noniso_r"
+    # the source is generated into the dev folder and remeshed from there, not from the data root
+    assert calls == [("noniso", tmp_path / "noniso"),
+                     ("remesh", tmp_path / "noniso", tmp_path / "noniso_r",
+                      {"n_pairs": 2, "n_vertices": 700, "seed": 0})]
+
+
 def _tiny_suite_args(tmp_path, monkeypatch, **flags) -> argparse.Namespace:
     """The suite's arguments on one tiny generated non-isometric pair, RESULTS.md in ``tmp_path``."""
     spec = suite.DevSet("tiny", "pairs.csv", generator="nonisometric",

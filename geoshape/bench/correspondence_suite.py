@@ -4,7 +4,9 @@ The sets: the shared ``tosca_r5k`` (``pairs_subset.csv``), ``scape`` and ``tosca
 generated reproducibly into ``--dev-dir`` (reused when their ``generator.json`` records the same
 parameters), remeshed SCAPE and remeshed TOSCA r5k (``gen remesh-set``, 30 pairs, 5000 vertices,
 seed 0; remeshed SCAPE scored on its snapped feature points, ``pairs_features.csv``, like SCAPE)
-and the non-isometric family (``gen nonisometric``, 30 pairs, seed 0). Every pair is run and
+the non-isometric family (``gen nonisometric``, 30 pairs, seed 0) and its remeshed copy
+(``nonisometric_r5k``: both meshes of every pair remeshed on their own, so the two characters
+share no connectivity, as the unseen non-isometric pairs do not). Every pair is run and
 scored by :func:`geoshape.bench.correspondence.evaluate_pairs` (the bench's one per-pair
 evaluation); this module adds only the orchestration, the per-set metrics and the tables.
 
@@ -78,6 +80,11 @@ DEV_SETS = (
     DevSet("nonisometric", "pairs.csv", generator="nonisometric",
            params={"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
                    "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0}),
+    # the non-isometric family with both meshes of each pair remeshed on their own: no shared
+    # connectivity, as between two characters modelled apart
+    DevSet("nonisometric_r5k", "pairs.csv", generator="remesh",
+           params={"dataset": "nonisometric", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
+                   "iterations": 6}),
 )
 
 
@@ -114,7 +121,11 @@ def prepare_set(spec: DevSet, dev_dir: Path, log=print) -> Path:
     if spec.generator == "remesh":
         from geoshape_datasets_gen.remesh import write_remeshed_set
 
-        write_remeshed_set(p.pop("dataset"), folder, n_pairs=p.pop("pairs"), n_vertices=p.pop("vertices"),
+        source = p.pop("dataset")
+        generated = {s.name: s for s in DEV_SETS if s.generator}
+        if source in generated:  # a remeshed copy of another generated set: that one first
+            source = prepare_set(generated[source], dev_dir, log)
+        write_remeshed_set(source, folder, n_pairs=p.pop("pairs"), n_vertices=p.pop("vertices"),
                            **p)
     else:
         from geoshape_datasets_gen.nonisometric import write_nonisometric_set
