@@ -72,6 +72,10 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
                 signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, _FORWARDED)
             die_with_parent(parent)
+            # worker pools killed by Ctrl-C leave semaphores that multiprocessing's resource
+            # tracker (a process started with these -W options) frees and then warns about,
+            # after our one "interrupted" line; the freeing is what matters, not the warning
+            sys.warnoptions.append("ignore:resource_tracker:UserWarning")
             code = int(work() or 0)
         except SystemExit as stop:  # as sys.exit: None is success, a message is printed
             if stop.code is None or isinstance(stop.code, int):
