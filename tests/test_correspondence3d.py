@@ -154,13 +154,14 @@ def test_final_zoomout_keeps_an_exact_map_and_can_be_turned_off():
     rng = np.random.default_rng(11)
     perm = rng.permutation(len(V))
     inv = np.argsort(perm)
-    with_final = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=50, final_step=10, descriptor_map=False)
+    with_final = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=50, final_step=10, descriptor_map=False,
+                            final_vertices_per_eigenpair=20)
     without = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=30, descriptor_map=False)
     assert exact_share(with_final.p2p_12, inv) >= 0.99
     assert "final_zoomout" in with_final.timings and "final_zoomout" not in without.timings
     assert "soft_read_off" in with_final.timings
     unsoft = correspond(V, F, V[perm], inv[F], lb_k=30, final_k=50, final_step=10, descriptor_map=False,
-                        soft_temperature=0.0)
+                        final_vertices_per_eigenpair=20, soft_temperature=0.0)
     assert exact_share(unsoft.p2p_12, inv) >= 0.99 and "soft_read_off" not in unsoft.timings
 
 

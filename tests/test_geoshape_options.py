@@ -96,7 +96,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 27
+    assert len(GeoshapeOptions.names()) == 28
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
@@ -293,3 +293,28 @@ def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkey
     assert pipeline.orientation_repair(ctx, [direct], options, {}) == []
     off = dataclasses.replace(options, orientation_repair=False)
     assert pipeline.orientation_repair(ctx, [direct, mirrored], off, {}) == []
+
+
+@pytest.mark.parametrize(("n1", "n2", "expected"), [
+    (5000, 5000, 100),     # resolution bound: one eigenpair per 50 vertices
+    (4999, 5010, 100),     # rounded to the final_step grid, not cut to 95
+    (4344, 4344, 85),
+    (12500, 12500, 210),   # cost bound: 150 * sqrt(25000 / 12500) = 212
+    (27894, 27894, 140),
+    (50000, 5000, 100),    # resolution from the smaller mesh, cost from the larger (106)
+    (900, 900, 60),        # too small for a final ZoomOut: lb_k
+])
+def test_final_basis_grows_with_resolution_at_constant_cost(n1, n2, expected):
+    from geoshape.correspondence.pipeline import final_basis_size
+
+    assert final_basis_size(SimpleNamespace(n=n1), SimpleNamespace(n=n2), GeoshapeOptions()) == expected
+
+
+def test_final_basis_is_off_when_final_k_is_at_most_lb_k_and_clipped_to_the_mesh():
+    from geoshape.correspondence.pipeline import final_basis_size
+
+    off = GeoshapeOptions(lb_k=30, final_k=30)
+    assert final_basis_size(SimpleNamespace(n=20000), SimpleNamespace(n=20000), off) == 30
+    fine = GeoshapeOptions(final_vertices_per_eigenpair=1.0)
+    # at most n - 1 of either mesh
+    assert final_basis_size(SimpleNamespace(n=200), SimpleNamespace(n=120), fine) == 119

@@ -47,10 +47,9 @@ if TYPE_CHECKING:
 
 #: above this many vertices (either mesh) screening and refinement work on samples only
 LARGE_MESH = 8000
-#: the final ZoomOut uses at most one eigenpair per this many vertices of the smaller mesh, so
-#: each basis function is resolved by the mesh (on a 162-vertex sphere, 100 of its 161
-#: eigenpairs turned the exact map into a rotation)
-FINAL_VERTICES_PER_EIGENPAIR = 20
+#: ``final_k`` is the final basis size on a mesh of this many vertices; on a larger one it
+#: shrinks as 1/√n, so the eigen-solve and final ZoomOut, O(n k²), cost what they cost here
+FINAL_COST_VERTICES = 25_000
 #: which orientation of mapped triangles the ``prefer`` option asks for
 PREFERENCES = ("preserving", "reversing")
 #: scaling of the spectral embedding's columns by the eigenvalues (√λ, see spectral_embedding)
@@ -95,8 +94,17 @@ class GeoshapeOptions:
     """Farthest-point control points of the thin-plate spline."""
     lb_k: int = field(default=60, metadata=_int(1))
     """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
-    final_k: int = field(default=100, metadata=_int(1))
-    """Basis size the final full-resolution ZoomOut grows to from ``lb_k`` (≤ ``lb_k``: none)."""
+    # Why a cost bound: the final stage's eigen-solve and ZoomOut cost O(n k²); 150 eigenpairs
+    # on 25k vertices take about 10 s a pair (28k-vertex TOSCA cats: 10.8 s at 150, 15.7 s at
+    # 200), and more eigenpairs keep lowering the error (docs/correspondence3d.md).
+    final_k: int = field(default=150, metadata=_int(1))
+    """Final ZoomOut basis size on 25k vertices, ×√(25000 / n) on n (≤ ``lb_k``: no final ZoomOut)."""
+    # Why 50: at 5k vertices it gives the 100 eigenpairs that keep a pair at 0.6× pyFM's time;
+    # 25 (200 eigenpairs) lowered the 5k dev sets' errors by 4–12 % at twice the final stage's
+    # cost. It also keeps each basis function resolved by the mesh (on a 162-vertex sphere,
+    # 100 of its 161 eigenpairs turned the exact map into a rotation).
+    final_vertices_per_eigenpair: float = field(default=50.0, metadata=_float(1.0))
+    """The final ZoomOut uses at most one eigenpair per this many vertices of the smaller mesh."""
     final_step: int = field(default=5, metadata=_int(1))
     """Basis size added per iteration of the final full-resolution ZoomOut."""
     # Why a soft read-off: at 100 eigenpairs the rows of a few neighbouring vertices are about
@@ -283,7 +291,7 @@ class PairContext:
     lb_k: int
     """Eigenpairs used: ``lb_k`` clipped to n − 1 of both meshes."""
     final_k: int
-    """Final ZoomOut basis size: ``final_k``, at most n / FINAL_VERTICES_PER_EIGENPAIR, at least ``lb_k``."""
+    """Final ZoomOut basis size (:func:`final_basis_size`), at least ``lb_k``."""
     screen_k: int
     """``screen_k`` clipped to ``lb_k``."""
     s1: np.ndarray
@@ -363,11 +371,22 @@ def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOp
 
 
 def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> int:
-    """Eigenpairs of each mesh's one eigen-solve: ``final_k``, at most one per
-    :data:`FINAL_VERTICES_PER_EIGENPAIR` vertices of the smaller mesh, at least ``lb_k``
-    (clipped to n − 1)."""
+    """Eigenpairs of each mesh's one eigen-solve: the smaller of a resolution bound, one per
+    ``final_vertices_per_eigenpair`` vertices of the smaller mesh, and a cost bound,
+    ``final_k`` × √(:data:`FINAL_COST_VERTICES` / n) for the larger mesh's n (the O(n k²)
+    of the solve and the final ZoomOut held constant); rounded to a multiple of
+    ``final_step``, at least ``lb_k`` (clipped to n − 1), exactly ``lb_k`` (no final ZoomOut)
+    when ``final_k`` ≤ ``lb_k``. 5k vertices: 100; 12.5k: 210;
+    28k: 140; 50k: 105 (with the defaults).
+    """
     lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
-    return max(lb_k, min(options.final_k, min(m1.n, m2.n) // FINAL_VERTICES_PER_EIGENPAIR))
+    if options.final_k <= options.lb_k:  # the final ZoomOut turned off
+        return lb_k
+    by_resolution = min(m1.n, m2.n) / options.final_vertices_per_eigenpair
+    by_cost = options.final_k * np.sqrt(FINAL_COST_VERTICES / max(m1.n, m2.n))
+    step = options.final_step
+    k = step * int(np.floor(min(by_resolution, by_cost) / step + 0.5))
+    return max(lb_k, min(k, m1.n - 1, m2.n - 1))
 
 
 #: the per-mesh cache entries a stage run :func:`~geoshape.parallel.beside` the others hands back
@@ -983,8 +1002,8 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     In large-mesh mode each vertex starts from its nearest sample's image. The final ZoomOut
     ends, with a ``soft_temperature`` > 0, with one more step at ``final_k`` read off softly
     (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O((n1 + n2) k² + n1 c k)); meshes
-    too small for a final ZoomOut (``final_k`` clipped to ``lb_k`` by
-    :data:`FINAL_VERTICES_PER_EIGENPAIR`) skip both: there a ring spans more than the basis
+    too small for a final ZoomOut (:func:`final_basis_size` clipped to ``lb_k`` by
+    ``final_vertices_per_eigenpair``) skip both: there a ring spans more than the basis
     resolves, and on a 500-vertex pair the soft step raised the error of a near-exact map.
     """
     from geoshape.correspondence.fmaps.zoomout import (
