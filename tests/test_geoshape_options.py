@@ -76,6 +76,7 @@ def test_misspelled_prefer_fails_with_the_valid_choices(no_work):
     ("distinct_spacing", -0.5), ("distinct_spacing", float("nan")), ("distinct_spacing", "1"),
     ("distinct_spacing", True), ("distortion_power", 0.25), ("distortion_power", "2"),
     ("soft_temperature", -0.5), ("soft_temperature", float("inf")), ("soft_rings", 0), ("soft_rings", 2.5),
+    ("final_vertices_per_eigenpair", 0.5), ("final_vertices_per_eigenpair", float("nan")),
 ])
 def test_values_of_the_wrong_type_or_range_fail(no_work, name, value):
     V, F = _octahedron()

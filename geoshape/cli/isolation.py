@@ -75,6 +75,8 @@ def run_isolated(work: Callable[[], int], *, command: str, inputs: list[str], ou
             # worker pools killed by Ctrl-C leave semaphores that multiprocessing's resource
             # tracker (a process started with these -W options) frees and then warns about,
             # after our one "interrupted" line; the freeing is what matters, not the warning
+            # (the filter also hides the tracker's other UserWarnings: -W cannot match on a
+            # longer prefix, the message continues with a colon)
             sys.warnoptions.append("ignore:resource_tracker:UserWarning")
             code = int(work() or 0)
         except SystemExit as stop:  # as sys.exit: None is success, a message is printed

@@ -15,7 +15,7 @@
    mirrored, :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
 6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
-   full-resolution ZoomOut to ``final_k`` and a soft last read-off for precision.
+   full-resolution ZoomOut to :func:`final_basis_size` and a soft last read-off for precision.
 
 Every candidate map is a :class:`Candidate` with its scores by name. See
 docs/correspondence3d.md ("Pipeline stages") for what each stage costs.
@@ -48,7 +48,9 @@ if TYPE_CHECKING:
 #: above this many vertices (either mesh) screening and refinement work on samples only
 LARGE_MESH = 8000
 #: ``final_k`` is the final basis size on a mesh of this many vertices; on a larger one it
-#: shrinks as 1/√n, so the eigen-solve and final ZoomOut, O(n k²), cost what they cost here
+#: shrinks as 1/√n, so the eigen-solve's n k² stays what it is here (the final ZoomOut, about
+#: O(n k²) per step over (k − lb_k) / final_step steps, grows slowly with k: SCAPE's 12.5k
+#: vertices at 210 eigenpairs do about 1.4× the ZoomOut work of 25k at 150)
 FINAL_COST_VERTICES = 25_000
 #: which orientation of mapped triangles the ``prefer`` option asks for
 PREFERENCES = ("preserving", "reversing")
@@ -94,7 +96,7 @@ class GeoshapeOptions:
     """Farthest-point control points of the thin-plate spline."""
     lb_k: int = field(default=60, metadata=_int(1))
     """Laplace–Beltrami eigenpairs of the refined functional maps (at most n − 1)."""
-    # Why a cost bound: the final stage's eigen-solve and ZoomOut cost O(n k²); 150 eigenpairs
+    # Why a cost bound: the final stage's eigen-solve costs O(n k²) and its ZoomOut more; 150 eigenpairs
     # on 25k vertices take about 10 s a pair (28k-vertex TOSCA cats: 10.8 s at 150, 15.7 s at
     # 200), and more eigenpairs keep lowering the error (docs/correspondence3d.md).
     final_k: int = field(default=150, metadata=_int(1))
@@ -104,7 +106,7 @@ class GeoshapeOptions:
     # cost. It also keeps each basis function resolved by the mesh (on a 162-vertex sphere,
     # 100 of its 161 eigenpairs turned the exact map into a rotation).
     final_vertices_per_eigenpair: float = field(default=50.0, metadata=_float(1.0))
-    """The final ZoomOut uses at most one eigenpair per this many vertices of the smaller mesh."""
+    """The final ZoomOut uses about one eigenpair per this many vertices of the smaller mesh, at most."""
     final_step: int = field(default=5, metadata=_int(1))
     """Basis size added per iteration of the final full-resolution ZoomOut."""
     # Why a soft read-off: at 100 eigenpairs the rows of a few neighbouring vertices are about
@@ -373,11 +375,12 @@ def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOp
 def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> int:
     """Eigenpairs of each mesh's one eigen-solve: the smaller of a resolution bound, one per
     ``final_vertices_per_eigenpair`` vertices of the smaller mesh, and a cost bound,
-    ``final_k`` × √(:data:`FINAL_COST_VERTICES` / n) for the larger mesh's n (the O(n k²)
-    of the solve and the final ZoomOut held constant); rounded to a multiple of
-    ``final_step``, at least ``lb_k`` (clipped to n − 1), exactly ``lb_k`` (no final ZoomOut)
-    when ``final_k`` ≤ ``lb_k``. 5k vertices: 100; 12.5k: 210;
-    28k: 140; 50k: 105 (with the defaults).
+    ``final_k`` × √(:data:`FINAL_COST_VERTICES` / n) for the larger mesh's n (the eigen-solve's
+    n k² held constant); rounded to the nearest multiple of ``final_step`` (so it may exceed
+    a bound by up to half a step), at least ``lb_k`` (clipped to n − 1), exactly ``lb_k`` (no
+    final ZoomOut) when ``final_k`` ≤ ``lb_k``. 5k vertices: 100; 12.5k: 210; 28k: 140; 50k:
+    105 (with the defaults); below about 3k vertices (the resolution bound) and above about
+    140k (the cost bound) it falls to ``lb_k`` and the final ZoomOut is skipped.
     """
     lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
     if options.final_k <= options.lb_k:  # the final ZoomOut turned off
@@ -386,7 +389,7 @@ def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOption
     by_cost = options.final_k * np.sqrt(FINAL_COST_VERTICES / max(m1.n, m2.n))
     step = options.final_step
     k = step * int(np.floor(min(by_resolution, by_cost) / step + 0.5))
-    return max(lb_k, min(k, m1.n - 1, m2.n - 1))
+    return int(max(lb_k, min(k, m1.n - 1, m2.n - 1)))
 
 
 #: the per-mesh cache entries a stage run :func:`~geoshape.parallel.beside` the others hands back
@@ -996,15 +999,16 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
                     timings: dict) -> np.ndarray:
     """Stage 6: ``p2p_12 (n1,)`` — the chosen refined map's functional map (``lb_k`` × ``lb_k``)
     read off at every vertex of both meshes, then ZoomOut at full resolution from ``lb_k`` to
-    ``final_k`` in steps of ``final_step`` (precision: more basis functions resolve finer
+    :func:`final_basis_size` in steps of ``final_step`` (precision: more basis functions resolve finer
     detail than the samples can). Each read-off is O(n1 n2 k), or O(n1 c k) with c = 64
     spatial candidates around the current image above ``BRUTE_FORCE_MAX`` target vertices.
     In large-mesh mode each vertex starts from its nearest sample's image. The final ZoomOut
-    ends, with a ``soft_temperature`` > 0, with one more step at ``final_k`` read off softly
-    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O((n1 + n2) k² + n1 c k)); meshes
-    too small for a final ZoomOut (:func:`final_basis_size` clipped to ``lb_k`` by
-    ``final_vertices_per_eigenpair``) skip both: there a ring spans more than the basis
-    resolves, and on a 500-vertex pair the soft step raised the error of a near-exact map.
+    ends, with a ``soft_temperature`` > 0, with one more step at that size read off softly
+    (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O((n1 + n2) k² + n1 c k)); pairs
+    whose :func:`final_basis_size` is ``lb_k`` (meshes too small for the resolution bound or
+    too large for the cost bound, or ``final_k`` ≤ ``lb_k``) skip both: on small meshes a
+    ring spans more than the basis resolves, and on a 500-vertex pair the soft step raised
+    the error of a near-exact map.
     """
     from geoshape.correspondence.fmaps.zoomout import (
         BRUTE_FORCE_MAX,
