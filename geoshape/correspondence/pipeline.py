@@ -372,6 +372,11 @@ def candidate_alignments(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOp
     return A, B, alignments + sign_flip_variants(alignments, A, B)
 
 
+def refined_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> int:
+    """Eigenpairs of the refined functional maps: ``lb_k`` clipped to n − 1 of both meshes."""
+    return min(options.lb_k, m1.n - 1, m2.n - 1)
+
+
 def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -> int:
     """Eigenpairs of each mesh's one eigen-solve: the smaller of a resolution bound, one per
     ``final_vertices_per_eigenpair`` vertices of the smaller mesh, and a cost bound,
@@ -382,13 +387,13 @@ def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOption
     105 (with the defaults); below about 3k vertices (the resolution bound) and above about
     140k (the cost bound) it falls to ``lb_k`` and the final ZoomOut is skipped.
     """
-    lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
+    lb_k = refined_basis_size(m1, m2, options)
     if options.final_k <= options.lb_k:  # the final ZoomOut turned off
         return lb_k
     by_resolution = min(m1.n, m2.n) / options.final_vertices_per_eigenpair
     by_cost = options.final_k * np.sqrt(FINAL_COST_VERTICES / max(m1.n, m2.n))
     step = options.final_step
-    k = step * int(np.floor(min(by_resolution, by_cost) / step + 0.5))
+    k = step * int(min(by_resolution, by_cost) / step + 0.5)  # the nearest multiple (both > 0)
     return int(max(lb_k, min(k, m1.n - 1, m2.n - 1)))
 
 
@@ -472,7 +477,7 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
     """
     t = time.perf_counter()
     seed = options.seed
-    lb_k = min(options.lb_k, m1.n - 1, m2.n - 1)
+    lb_k = refined_basis_size(m1, m2, options)
     screen_k = min(options.screen_k, lb_k)
     final_k = final_basis_size(m1, m2, options)
     m1.laplacian(final_k), m2.laplacian(final_k)  # one eigen-solve per mesh for every stage
