@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from geoshape.correspondence.mesh_matching import CORRESPONDENCE_METHODS, bijective_assignment, correspond
-from geoshape.errors import InvalidOptionError
+from geoshape.errors import InvalidMeshError, InvalidOptionError
 
 
 @functools.cache
@@ -148,7 +148,8 @@ def test_vertex_rings_of_a_strip():
     assert sorted(vertex_rings(F, 7, 2)[6].indices) == [6]  # an isolated vertex: itself
     with pytest.raises(InvalidOptionError, match="rings"):
         vertex_rings(F, 7, -1)
-    with pytest.raises(InvalidOptionError, match="vertex 5"):
+    bad_face = r"vertex_rings: face indices must lie in \[0, 4\], got values in \[0, 5\]"
+    with pytest.raises(InvalidMeshError, match=bad_face):
         vertex_rings(F, 5, 1)  # a face names a vertex the count leaves out
 
 

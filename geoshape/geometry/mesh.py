@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from geoshape.errors import InvalidOptionError
-from geoshape.io.validate import check_mesh
+from geoshape.io.validate import check_face_indices, check_mesh
 
 __all__ = [
     "ZERO_LENGTH_EPS",
@@ -300,6 +300,13 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
     n : int, the vertex count
     rings : int, at least 0
 
+    Raises
+    ------
+    InvalidMeshError
+        A face index outside ``[0, n − 1]`` (:func:`~geoshape.io.validate.check_face_indices`).
+    InvalidOptionError
+        ``rings < 0``.
+
     Notes
     -----
     ``rings`` sparse products with the adjacency: O(n r̄ d) time for rings of r̄ vertices and
@@ -312,10 +319,7 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
     """
     if rings < 0:
         raise InvalidOptionError(f"rings must be at least 0, got {rings!r}")
-    F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
-    if F.size and (F.max() >= n or F.min() < 0):
-        bad = F.max() if F.max() >= n else F.min()
-        raise InvalidOptionError(f"vertex_rings: a face names vertex {bad}, outside the {n} vertices")
+    F = check_face_indices(F, n, name="vertex_rings")
     E = unique_edges(F, n)
     identity = sp.identity(n, dtype=bool, format="csr")
     step = _symmetric_edge_matrix(E, n, np.ones(len(E), dtype=bool)) + identity

@@ -69,6 +69,25 @@ def check_mesh(
             f"{name}: {int(bad.sum())} vertices have NaN or infinite coordinates "
             f"(first: vertex {first} = {V[first].tolist()})"
         )
+    F = check_face_indices(F, V.shape[0], name=name)
+    if F.shape[0] == 0 and not allow_no_faces:
+        raise InvalidMeshError(f"{name}: has no faces")
+    return V, F
+
+
+def check_face_indices(F, n: int, *, name: str = "mesh") -> np.ndarray:
+    """Coerce and check triangles as indices into ``n`` vertices (the face half of
+    :func:`check_mesh`, for functions that take ``F`` and a vertex count).
+
+    Returns ``F (m, 3)`` int64, C-contiguous (``m`` may be 0). Raises
+    :class:`InvalidMeshError` for a non-integer, non-triangle or ragged array and for an
+    index outside ``[0, n − 1]``. O(m).
+
+    Examples
+    --------
+    >>> check_face_indices([[0.0, 1.0, 2.0]], 3).dtype
+    dtype('int64')
+    """
     try:
         F_in = np.asarray(F)
     except (TypeError, ValueError) as exc:  # e.g. ragged rows
@@ -83,16 +102,13 @@ def check_mesh(
     F = np.ascontiguousarray(F_in, dtype=np.int64)
     if F.ndim != 2 or F.shape[1] != 3:
         raise InvalidMeshError(f"{name}: faces must have shape (m, 3) (triangles), got {F.shape}")
-    if F.shape[0] == 0 and not allow_no_faces:
-        raise InvalidMeshError(f"{name}: has no faces")
     if F.size:
         lo, hi = int(F.min()), int(F.max())
-        if lo < 0 or hi >= V.shape[0]:
+        if lo < 0 or hi >= n:
             raise InvalidMeshError(
-                f"{name}: face indices must lie in [0, {V.shape[0] - 1}], "
-                f"got values in [{lo}, {hi}]"
+                f"{name}: face indices must lie in [0, {n - 1}], got values in [{lo}, {hi}]"
             )
-    return V, F
+    return F
 
 
 def check_contour(P, *, name: str = "contour", min_points: int = 8) -> np.ndarray:
