@@ -311,11 +311,17 @@ def test_final_basis_grows_with_resolution_at_constant_cost(n1, n2, expected):
     assert final_basis_size(SimpleNamespace(n=n1), SimpleNamespace(n=n2), GeoshapeOptions()) == expected
 
 
-def test_final_basis_is_off_when_final_k_is_at_most_lb_k_and_clipped_to_the_mesh():
+def test_final_basis_is_off_at_final_k_zero_and_clipped_to_the_mesh():
     from geoshape.correspondence.pipeline import final_basis_size
 
-    off = GeoshapeOptions(lb_k=30, final_k=30)
+    off = GeoshapeOptions(lb_k=30, final_k=0)
     assert final_basis_size(SimpleNamespace(n=20000), SimpleNamespace(n=20000), off) == 30
+    # a cost bound under lb_k on a large mesh also leaves the refined basis (no special case)
+    small = GeoshapeOptions(lb_k=60, final_k=40)
+    assert final_basis_size(SimpleNamespace(n=25000), SimpleNamespace(n=25000), small) == 60
+    # ... while on a small mesh the same final_k grows past lb_k (it is a bound at 25k vertices)
+    assert final_basis_size(SimpleNamespace(n=2500), SimpleNamespace(n=2500),
+                            GeoshapeOptions(lb_k=30, final_k=40, final_vertices_per_eigenpair=10.0)) == 125
     fine = GeoshapeOptions(final_vertices_per_eigenpair=1.0)
     # at most n - 1 of either mesh
     assert final_basis_size(SimpleNamespace(n=200), SimpleNamespace(n=120), fine) == 119

@@ -99,8 +99,8 @@ class GeoshapeOptions:
     # Why a cost bound: the final stage's eigen-solve costs O(n k²) and its ZoomOut more; 150 eigenpairs
     # on 25k vertices take about 10 s a pair (28k-vertex TOSCA cats: 10.8 s at 150, 15.7 s at
     # 200), and more eigenpairs keep lowering the error (docs/correspondence3d.md).
-    final_k: int = field(default=150, metadata=_int(1))
-    """Final ZoomOut basis size on 25k vertices, ×√(25000 / n) on n (≤ ``lb_k``: no final ZoomOut)."""
+    final_k: int = field(default=150, metadata=_int(0))
+    """Final ZoomOut basis size on 25k vertices, ×√(25000 / n) on n (0: no final ZoomOut)."""
     # Why 50: at 5k vertices it gives the 100 eigenpairs that keep a pair at 0.6× pyFM's time;
     # 25 (200 eigenpairs) lowered the 5k dev sets' errors by 4–12 % at twice the final stage's
     # cost. It also keeps each basis function resolved by the mesh (on a 162-vertex sphere,
@@ -382,14 +382,12 @@ def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOption
     ``final_vertices_per_eigenpair`` vertices of the smaller mesh, and a cost bound,
     ``final_k`` × √(:data:`FINAL_COST_VERTICES` / n) for the larger mesh's n (the eigen-solve's
     n k² held constant); rounded to the nearest multiple of ``final_step`` (so it may exceed
-    a bound by up to half a step), at least ``lb_k`` (clipped to n − 1), exactly ``lb_k`` (no
-    final ZoomOut) when ``final_k`` ≤ ``lb_k``. 5k vertices: 100; 12.5k: 210; 28k: 140; 50k:
+    a bound by up to half a step), at least ``lb_k`` (clipped to n − 1); ``lb_k`` means no
+    final ZoomOut (``final_k`` = 0 turns it off). 5k vertices: 100; 12.5k: 210; 28k: 140; 50k:
     105 (with the defaults); below about 3k vertices (the resolution bound) and above about
     140k (the cost bound) it falls to ``lb_k`` and the final ZoomOut is skipped.
     """
     lb_k = refined_basis_size(m1, m2, options)
-    if options.final_k <= options.lb_k:  # the final ZoomOut turned off
-        return lb_k
     by_resolution = min(m1.n, m2.n) / options.final_vertices_per_eigenpair
     by_cost = options.final_k * np.sqrt(FINAL_COST_VERTICES / max(m1.n, m2.n))
     step = options.final_step
@@ -1011,7 +1009,7 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
     ends, with a ``soft_temperature`` > 0, with one more step at that size read off softly
     (:func:`~geoshape.correspondence.fmaps.zoomout.soft_read_off`, O((n1 + n2) k² + n1 c k)); pairs
     whose :func:`final_basis_size` is ``lb_k`` (meshes too small for the resolution bound or
-    too large for the cost bound, or ``final_k`` ≤ ``lb_k``) skip both: on small meshes a
+    too large for the cost bound, or ``final_k`` = 0) skip both: on small meshes a
     ring spans more than the basis resolves, and on a 500-vertex pair the soft step raised
     the error of a near-exact map.
     """
