@@ -136,7 +136,8 @@ def test_pair_costs_equal_cost_matrices_then_dp(silhouette_contours, mirror):
         C = signature_cost_matrices(sig.X, stack.X, "sqeuclidean")
         if mirror:
             C = np.stack([C, signature_cost_matrices(sig.X, stack.X_mirror, "sqeuclidean")], 1)
-        starts = 8 if mirror else 4  # n_starts=4 per orientation
+        per_orientation = spec["matcher_options"]["n_starts"]
+        starts = 2 * per_orientation if mirror else per_orientation
         ref = batch_match_costs(C, "dp", skip_cost=0.3, n_starts=starts)
         ref_totals, _ = reference_dp_variants(C if mirror else C[:, None], 0.3, starts)
         assert np.array_equal(ref, ref_totals.min(axis=1) / 60.0)

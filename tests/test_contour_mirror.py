@@ -1,6 +1,6 @@
 """Mirror-aware 2D matching: the default method matches both orientations; the off switch
-(``mirror=False`` in the API, ``--method default_nomirror`` on the command line) gives the
-previous default."""
+(``mirror=False`` in the API, ``--method default_nomirror`` on the command line) matches the
+direct orientation only, with everything else the default's."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from geoshape.contour.methods import CONTOUR_METHODS, match_contours, method_spe
 from geoshape.contour.retrieval import shape_distance_matrix
 from geoshape.geometry.contour import mirror_contour
 
-#: The default method before mirror-aware matching became its default.
-OLD_DEFAULT = dict(mirror=False, n_starts=4)
+#: The default's matcher with mirror images off (the same starts per orientation).
+DIRECT_ONLY = dict(mirror=False, n_starts=CONTOUR_METHODS["default"]["matcher_options"]["n_starts"])
 
 
 @pytest.fixture(scope="module")
@@ -38,10 +38,11 @@ def test_default_matches_mirror_images():
     assert spec["mirror"] is True
     off = method_spec("default", mirror=False)
     old = method_spec("default_nomirror")
-    for key, value in OLD_DEFAULT.items():
+    for key, value in DIRECT_ONLY.items():
         assert off.get(key, off["matcher_options"].get(key)) == value
         assert old.get(key, old["matcher_options"].get(key)) == value
     assert old["parts"] == spec["parts"] and old["matcher"] == spec["matcher"]
+    assert old["matcher_options"] == spec["matcher_options"] == off["matcher_options"]
 
 
 def test_mirrored_silhouette_retrieves_its_original_first(contours):
@@ -53,13 +54,13 @@ def test_mirrored_silhouette_retrieves_its_original_first(contours):
     assert cost <= D[-1, 0] + 1e-12 and cost < 0.05
 
 
-def test_off_switch_gives_the_previous_default(contours):
+def test_off_switch_is_the_direct_orientation_only(contours):
     query = _mirrored_copy(contours[0])
     shapes = [*contours, query]
     on = shape_distance_matrix(shapes, backend="serial")
     off = shape_distance_matrix(shapes, backend="serial", mirror=False)
     named = shape_distance_matrix(shapes, "default_nomirror", backend="serial")
-    explicit = shape_distance_matrix(shapes, backend="serial", **OLD_DEFAULT)
+    explicit = shape_distance_matrix(shapes, backend="serial", **DIRECT_ONLY)
     assert np.array_equal(off, named) and np.array_equal(off, explicit)
     assert off[-1, 0] > 3 * on[-1, 0]  # without mirror images the reflection is far
     assert (on <= off + 1e-12).all()  # here no pair is worse with both orientations

@@ -9,7 +9,9 @@ settings measured are
 
 - ``off``: the direct orientation only, 4 starts (the previous default);
 - ``on-2``: both orientations, ``n_starts=2``: 4 starts in all (the DP work of ``off``);
-- ``on``: both orientations, ``n_starts=4``: 8 starts in all.
+- ``on``: both orientations, ``n_starts=4``: 8 starts in all (the default of 2026-12-01);
+- ``on-8``: both orientations, ``n_starts=8``: 16 starts in all (the default since 2026-12-05,
+  chosen with ``--methods``: "2D default method: cross-validated choice").
 
 Collections: ``kimia99``, ``tari1000``, ``generated`` (seeded silhouette generator,
 6 classes × 12) and ``<set>-<kind>`` = ``geoshape gen perturb2d <set> --kind <kind> --seed 0``
@@ -37,7 +39,7 @@ DEFAULT_SETS = (
     "tari1000-mirror,tari1000-noise"
 )
 #: name -> (mirror, n_starts per orientation)
-SETTINGS = {"off": (False, 4), "on-2": (True, 2), "on": (True, 4)}
+SETTINGS = {"off": (False, 4), "on-2": (True, 2), "on": (True, 4), "on-8": (True, 8)}
 #: Candidates for ``default`` compared with ``--methods`` (the first is the time reference).
 DEFAULT_CANDIDATES = "default_2026_11,default_hf"
 #: A setting may cost at most this many times the matrix time of ``off``.
@@ -131,14 +133,27 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 
 def _method_points(method: str) -> tuple[str, int, dict]:
     """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
-    points (100 unless given); ``+skipX`` overrides the DP skip cost.
+    points (100 unless given); ``+skipX`` overrides the DP skip cost, ``+startsK`` the cyclic
+    DP's starts per orientation (in either order, before ``@``).
 
     >>> _method_points("default_hf"), _method_points("default+skip0.4@128")
     (('default_hf', 100, {}), ('default', 128, {'skip_cost': 0.4}))
+    >>> _method_points("default+starts8+skip0.2")
+    ('default', 100, {'n_starts': 8, 'skip_cost': 0.2})
     """
+    from geoshape.errors import InvalidOptionError
+
     rest, _, n = method.partition("@")
-    base, _, skip = rest.partition("+skip")
-    return base, int(n) if n else 100, ({"skip_cost": float(skip)} if skip else {})
+    base, *mods = rest.split("+")
+    overrides: dict = {}
+    for mod in mods:
+        if mod.startswith("skip"):
+            overrides["skip_cost"] = float(mod[4:])
+        elif mod.startswith("starts") and mod[6:].isdigit():
+            overrides["n_starts"] = int(mod[6:])
+        else:
+            raise InvalidOptionError(f"{method!r}: unknown modifier {'+' + mod!r} (use +skipX, +startsK)")
+    return base, int(n) if n else 100, overrides
 
 
 def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> dict:
@@ -304,7 +319,7 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     import time
 
     from geoshape.bench.results import workers_note
-    from geoshape.contour.methods import CONTOUR_METHODS
+    from geoshape.contour.methods import CONTOUR_METHODS, method_spec
 
     def spec(m):
         return CONTOUR_METHODS[_method_points(m)[0]]
@@ -314,16 +329,20 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         return f", {n} contour points" + "".join(f", {k} {v:g}" for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
-    default = CONTOUR_METHODS["default"]
-    same = [m for m in methods if _method_points(m)[1:] == (100, {})
-            and all(spec(m)[k] == default[k] for k in ("parts", "matcher_options", "mirror"))]
+
+    def effective(m):
+        base, n, over = _method_points(m)
+        return n, {k: v for k, v in method_spec(base, **over).items() if k != "summary"}
+
+    same = [m for m in methods if effective(m) == effective("default")]
     return (
         "## 2D default method: cross-validated choice\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "
         f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
-        "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X). "
+        "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X; "
+        "`+startsK`: K cyclic-DP starts per orientation). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
         "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
         f"Candidates:\n\n{what}\n\n"
