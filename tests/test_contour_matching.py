@@ -92,8 +92,8 @@ def test_cyclic_dp_finds_shifted_diagonal_and_skips():
 
 def test_more_dp_starts_never_cost_more(silhouette_contour):
     """The starts are the best-ranked cyclic offsets, so a larger ``n_starts`` tries a superset
-    of them and its cost is never higher; 8 (the default's, per orientation) finds cheaper
-    matchings than 4 on some pairs, and every start (``n_starts = N``) on some more."""
+    of them and its cost is never higher; 8 finds cheaper matchings than 4 on some pairs, and
+    every start (``n_starts = N``) on some more."""
     from geoshape_datasets_gen.silhouettes2d import articulated_silhouette
 
     from geoshape.contour.methods import contour_signature, signature_cost_matrices

@@ -10,7 +10,7 @@ settings measured are
 - ``off``: the direct orientation only, 4 starts (the previous default);
 - ``on-2``: both orientations, ``n_starts=2``: 4 starts in all (the DP work of ``off``);
 - ``on``: both orientations, ``n_starts=4``: 8 starts in all (the default of 2026-12-01);
-- ``on-8``: both orientations, ``n_starts=8``: 16 starts in all (the default since 2026-12-05,
+- ``on-16``: both orientations, ``n_starts=16``: 32 starts in all (the default since 2026-12-05,
   chosen with ``--methods``: "2D default method: cross-validated choice").
 
 Collections: ``kimia99``, ``tari1000``, ``generated`` (seeded silhouette generator,
@@ -39,7 +39,7 @@ DEFAULT_SETS = (
     "tari1000-mirror,tari1000-noise"
 )
 #: name -> (mirror, n_starts per orientation)
-SETTINGS = {"off": (False, 4), "on-2": (True, 2), "on": (True, 4), "on-8": (True, 8)}
+SETTINGS = {"off": (False, 4), "on-2": (True, 2), "on": (True, 4), "on-16": (True, 16)}
 #: Candidates for ``default`` compared with ``--methods`` (the first is the time reference).
 DEFAULT_CANDIDATES = "default_2026_11,default_hf"
 #: A setting may cost at most this many times the matrix time of ``off``.
