@@ -6,14 +6,20 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+import pytest
 
 from geoshape.bench import mirror2d
+from geoshape.errors import InvalidOptionError
 
 
 def test_method_names_parse():
     assert mirror2d._method_points("default") == ("default", 100, {})
     assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
     assert mirror2d._method_points("default+skip0.4") == ("default", 100, {"skip_cost": 0.4})
+    assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
+    for bad in ("default+starts", "default+skipX", "default+fast"):
+        with pytest.raises(InvalidOptionError, match="bad modifier"):
+            mirror2d._method_points(bad)
 
 
 def test_rule_uses_the_reference_for_time():

@@ -147,12 +147,16 @@ def _method_points(method: str) -> tuple[str, int, dict]:
     base, *mods = rest.split("+")
     overrides: dict = {}
     for mod in mods:
-        if mod.startswith("skip"):
-            overrides["skip_cost"] = float(mod[4:])
-        elif mod.startswith("starts") and mod[6:].isdigit():
-            overrides["n_starts"] = int(mod[6:])
-        else:
-            raise InvalidOptionError(f"{method!r}: unknown modifier {'+' + mod!r} (use +skipX, +startsK)")
+        try:
+            if mod.startswith("skip"):
+                overrides["skip_cost"] = float(mod[4:])
+                continue
+            if mod.startswith("starts"):
+                overrides["n_starts"] = int(mod[6:])
+                continue
+        except ValueError:
+            pass
+        raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX, +startsK)")
     return base, int(n) if n else 100, overrides
 
 
