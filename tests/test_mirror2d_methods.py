@@ -17,8 +17,9 @@ def test_method_names_parse():
     assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
     assert mirror2d._method_points("default+skip0.4") == ("default", 100, {"skip_cost": 0.4})
     assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
-    for bad in ("default+starts", "default+skipX", "default+fast"):
-        with pytest.raises(InvalidOptionError, match="bad modifier"):
+    for bad in ("default+starts", "default+skipX", "default+fast", "default+starts0", "default+skip-1",
+                "default@abc", "default@4", "default@128+starts8"):
+        with pytest.raises(InvalidOptionError, match="bad (modifier|contour point count)"):
             mirror2d._method_points(bad)
 
 
@@ -41,6 +42,18 @@ def test_methods_mode_runs_and_caches(tmp_path, capsys):
     assert mirror2d.run(args) == 0
     out = capsys.readouterr().out
     assert "2D default method: cross-validated choice" in out and "**chosen**" in out
-    D = np.load(tmp_path / "work" / "tiny_height_functions+skip0.1@64.npy")
+    D = np.load(tmp_path / "work" / f"{mirror2d._cache_name('tiny', 'height_functions+skip0.1@64')}.npy")
     assert D.shape == (9, 9) and np.allclose(D, D.T)
-    assert mirror2d.run(args) == 0  # from the cache
+    assert mirror2d.run(args) == 0  # from the cache: nothing recomputed
+    assert "…" not in capsys.readouterr().out
+
+
+def test_cache_is_keyed_by_what_a_method_computes(monkeypatch):
+    """A registry entry that changes (``default`` taking more DP starts) gets a new cache file."""
+    from geoshape.contour import methods
+
+    before = mirror2d._cache_name("set", "default")
+    assert before == mirror2d._cache_name("set", "default")
+    entry = dict(methods.CONTOUR_METHODS["default"], matcher_options=dict(skip_cost=0.3, n_starts=3))
+    monkeypatch.setitem(methods.CONTOUR_METHODS, "default", entry)
+    assert mirror2d._cache_name("set", "default") != before

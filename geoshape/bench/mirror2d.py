@@ -7,7 +7,7 @@ image (:func:`geoshape.contour.methods.pair_costs`); the cyclic DP's ``n_starts`
 orientation (the best ``2·n_starts`` starts, ranked over both orientations together), so the
 settings measured are
 
-- ``off``: the direct orientation only, 4 starts (the previous default);
+- ``off``: the direct orientation only, 4 starts (the default before 2026-12-01);
 - ``on-2``: both orientations, ``n_starts=2``: 4 starts in all (the DP work of ``off``);
 - ``on``: both orientations, ``n_starts=4``: 8 starts in all (the default of 2026-12-01);
 - ``on-16``: both orientations, ``n_starts=16``: 32 starts in all (the default since 2026-12-05,
@@ -133,8 +133,9 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 
 def _method_points(method: str) -> tuple[str, int, dict]:
     """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
-    points (100 unless given); ``+skipX`` overrides the DP skip cost, ``+startsK`` the cyclic
-    DP's starts per orientation (in either order, before ``@``).
+    points (100 unless given); ``+skipX`` overrides the DP skip cost (X > 0), ``+startsK`` the
+    cyclic DP's starts per orientation (K ≥ 1), in either order, before ``@``. Anything else
+    raises :class:`~geoshape.errors.InvalidOptionError` naming it, before any work.
 
     >>> _method_points("default_hf"), _method_points("default+skip0.4@128")
     (('default_hf', 100, {}), ('default', 128, {'skip_cost': 0.4}))
@@ -143,21 +144,42 @@ def _method_points(method: str) -> tuple[str, int, dict]:
     """
     from geoshape.errors import InvalidOptionError
 
-    rest, _, n = method.partition("@")
+    rest, at, n = method.partition("@")
     base, *mods = rest.split("+")
     overrides: dict = {}
     for mod in mods:
         try:
-            if mod.startswith("skip"):
+            if mod.startswith("skip") and float(mod[4:]) > 0:
                 overrides["skip_cost"] = float(mod[4:])
                 continue
-            if mod.startswith("starts"):
+            if mod.startswith("starts") and int(mod[6:]) >= 1:
                 overrides["n_starts"] = int(mod[6:])
                 continue
         except ValueError:
             pass
-        raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX, +startsK)")
+        raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
+                                 "+startsK with K >= 1)")
+    if at and not (n.isdigit() and int(n) >= 8):
+        raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else 100, overrides
+
+
+def _effective(method: str) -> tuple[int, dict]:
+    """``(contour points, method spec with the overrides applied)`` of a ``--methods`` name:
+    two names with the same effective spec compute the same matrix."""
+    from geoshape.contour.methods import method_spec
+
+    base, n, over = _method_points(method)
+    return n, {k: v for k, v in method_spec(base, **over).items() if k != "summary"}
+
+
+def _cache_name(name: str, method: str) -> str:
+    """Cache file stem of a collection's matrix for ``method``: its name and a digest of its
+    effective spec, so a method whose registry entry changed (e.g. ``default``) is recomputed."""
+    import hashlib
+
+    digest = hashlib.sha1(repr(_effective(method)).encode()).hexdigest()[:8]
+    return f"{name}_{method}_{digest}"
 
 
 def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> dict:
@@ -175,7 +197,7 @@ def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> d
     out, contours = {}, {}
     for method in methods:
         base, n_points, overrides = _method_points(method)
-        path = work / f"{name}_{method}.npy"
+        path = work / f"{_cache_name(name, method)}.npy"
         meta = path.with_suffix(".json")
         if path.is_file() and meta.is_file():
             out[method] = (np.load(path), json.loads(meta.read_text()))
@@ -299,10 +321,11 @@ def run(args) -> int:
         "`generated` is the seeded silhouette generator (6 classes × 12); `SET-KIND` is "
         "`geoshape gen perturb2d SET --kind KIND --seed 0` "
         "(`mirror`: every other shape flipped left-right). Settings: `off` matches the direct "
-        "orientation only (4 cyclic-DP starts: the previous default); `on` also the mirror "
-        "image, 4 starts per orientation (the best 8, ranked over both orientations together); "
-        "`on-2` 2 per orientation (4 in all: the DP work of `off`, plus one more cost-matrix "
-        "product and start ranking). 'descriptors s' includes the mirror images' descriptors "
+        "orientation only (4 cyclic-DP starts: the default before 2026-12-01); `on` also the "
+        "mirror image, 4 starts per orientation (the best 8, ranked over both orientations "
+        "together); `on-2` 2 per orientation (4 in all: the DP work of `off`, plus one more "
+        "cost-matrix product and start ranking); `on-16` 16 per orientation (32 in all). "
+        "'descriptors s' includes the mirror images' descriptors "
         "when on; 'all-pairs matrix s' is the matching alone.\n\n"
         f"Rule, fixed before the run: a setting whose matrix time summed over the collections is "
         f"above {MAX_TIME_RATIO:g} × that of `off` is not eligible; of the others the best "
@@ -323,22 +346,17 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     import time
 
     from geoshape.bench.results import workers_note
-    from geoshape.contour.methods import CONTOUR_METHODS, method_spec
+    from geoshape.contour.methods import CONTOUR_METHODS
 
     def spec(m):
         return CONTOUR_METHODS[_method_points(m)[0]]
 
     def extra(m):
         _, n, over = _method_points(m)
-        return f", {n} contour points" + "".join(f", {k} {v:g}" for k, v in over.items())
+        return f", {n} contour points" + "".join(f", {k} {v:g} instead" for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
-
-    def effective(m):
-        base, n, over = _method_points(m)
-        return n, {k: v for k, v in method_spec(base, **over).items() if k != "summary"}
-
-    same = [m for m in methods if effective(m) == effective("default")]
+    same = [m for m in methods if _effective(m) == _effective("default")]
     return (
         "## 2D default method: cross-validated choice\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "

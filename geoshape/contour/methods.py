@@ -15,8 +15,8 @@ name           descriptor                               point cost   matcher
                ½ shape context + 0.005 geodesic shape   squared L2   per orientation), both
                context (weighted concatenation)                      orientations (mirror images)
 ``default_nomirror`` the same, direct orientation only
-``default_2026_11`` the default of November 2026: 4 starts per orientation (kept under this name)
-``default_hf`` the default + 3 × height functions (Wang et al. 2012), a cross-validation candidate
+``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
+``default_hf`` ``default_2026_11`` + 3 × height functions (Wang et al. 2012), a cross-validation candidate
 ``height_functions`` height functions alone  squared L2   cyclic DP, both orientations
 ============== ======================================== ============ ===========================
 
@@ -142,13 +142,13 @@ CONTOUR_METHODS: dict[str, dict] = {
         parts=_DEFAULT_PARTS,
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
         mirror=True,
-        summary="the default of November 2026 (4 cyclic-DP starts per orientation)",
+        summary="the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
     ),
     "default_hf": dict(
         parts=_DEFAULT_PARTS + (("height_functions", 3.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
         mirror=True,
-        summary="the default + 3 x height functions (25 runs), cyclic DP, mirror images too",
+        summary="default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
     ),
     "height_functions": dict(
         parts=(("height_functions", 1.0, "raw", {}),),

@@ -391,7 +391,7 @@ def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOption
     by_resolution = min(m1.n, m2.n) / options.final_vertices_per_eigenpair
     by_cost = options.final_k * np.sqrt(FINAL_COST_VERTICES / max(m1.n, m2.n))
     step = options.final_step
-    k = step * int(min(by_resolution, by_cost) / step + 0.5)  # the nearest multiple (both > 0)
+    k = step * int(min(by_resolution, by_cost) / step + 0.5)  # the nearest multiple (both ≥ 0)
     return int(max(lb_k, min(k, m1.n - 1, m2.n - 1)))
 
 

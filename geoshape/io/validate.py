@@ -1,7 +1,8 @@
 """Validation at the public boundary: one helper per kind of input.
 
-Every public function that takes a mesh calls :func:`check_mesh` once, every function
-that takes a contour calls :func:`check_contour`; the error quotes what was received.
+Every public function that takes a mesh calls :func:`check_mesh` once (functions that take
+faces and a vertex count: :func:`check_face_indices`, its face half), every function that
+takes a contour calls :func:`check_contour`; the error quotes what was received.
 Cost: O(n + m) for a mesh with n vertices and m faces, O(N) for a contour.
 """
 
