@@ -135,3 +135,29 @@ def test_bad_contours_raise(P, message):
         contour_curvature(P)
     with pytest.raises(GeoshapeError):
         geodesic_shape_context(P)
+
+
+def test_histogram_units_median_is_invariant_and_robust_to_a_far_part():
+    """Median units: scale-free like the mean; a far cluster of extra points (a part added)
+    moves the median unit less than the mean one, so the other points' bins move less."""
+    from geoshape.contour.shape_context import log_polar_histograms
+
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(60, 2))
+    angle = np.zeros((60, 60))
+
+    def dist(Y):
+        return np.linalg.norm(Y[:, None] - Y[None], axis=2)
+
+    for unit in ("mean", "median"):
+        H = log_polar_histograms(dist(X), angle, normalize_by=unit)
+        assert np.array_equal(H, log_polar_histograms(3.0 * dist(X), angle, normalize_by=unit))
+    Y = np.vstack([X, rng.normal(size=(12, 2)) * 0.3 + [8.0, 0.0]])  # a far part of 12 points
+    moved = {}
+    for unit in ("mean", "median"):
+        before = log_polar_histograms(dist(X), angle[:60, :60], normalize_by=unit)
+        after = log_polar_histograms(dist(Y), np.zeros((72, 72)), normalize_by=unit)[:60]
+        moved[unit] = np.abs(after - before).sum()
+    assert moved["median"] < 0.5 * moved["mean"]
+    with pytest.raises(InvalidOptionError, match="normalize_by"):
+        log_polar_histograms(dist(X), angle, normalize_by="max")

@@ -88,4 +88,5 @@ def test_previous_default_is_kept():
 
     old = CONTOUR_METHODS["default_2026_11"]
     assert [p[:2] for p in old["parts"]] == [("idsc", 1.0), ("shape_context", 0.5), ("gsc", 0.005)]
+    assert all("normalize_by" not in p[3] for p in old["parts"])  # mean units, as then
     assert old["matcher_options"] == dict(skip_cost=0.3, n_starts=4) and old["mirror"] is True

@@ -120,12 +120,13 @@ def inner_distances(P) -> tuple[np.ndarray, np.ndarray]:
 
 
 def inner_distance_shape_context(P, *, n_r: int = 8, n_theta: int = 12, r_inner: float = 0.125,
-                                 r_outer: float = 2.0) -> np.ndarray:
+                                 r_outer: float = 2.0, normalize_by: str = "mean") -> np.ndarray:
     """Inner-distance shape context of every point of a contour.
 
     Log-polar histograms (as :func:`geoshape.contour.shape_context.shape_context`) of
-    the inner distances (normalised by their mean) and inner angles (first path segment,
-    measured from the tangent at the point).
+    the inner distances (normalised by their mean, as in the paper, or with
+    ``normalize_by="median"`` by their median) and inner angles (first path segment, measured
+    from the tangent at the point).
 
     Returns
     -------
@@ -136,4 +137,4 @@ def inner_distance_shape_context(P, *, n_r: int = 8, n_theta: int = 12, r_inner:
     direction = P[hop] - P[:, None, :]  # (N, N, 2)
     angle = np.arctan2(direction[..., 1], direction[..., 0]) - contour_tangent_angles(P)[:, None]
     return log_polar_histograms(D, angle, n_r=n_r, n_theta=n_theta, r_inner=r_inner,
-                                r_outer=r_outer)
+                                r_outer=r_outer, normalize_by=normalize_by)

@@ -12,9 +12,10 @@ name           descriptor                               point cost   matcher
 ``idsc``       inner-distance shape context 8×12        Hellinger    cyclic DP
 ``curvature_map`` sampled curvature map                 squared L2   best match
 ``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP (16 starts
-               ½ shape context + 0.005 geodesic shape   squared L2   per orientation), both
-               context (weighted concatenation)                      orientations (mirror images)
+               ½ shape context (distances in median     squared L2   per orientation), both
+               units) + 0.005 geodesic shape context                 orientations (mirror images)
 ``default_nomirror`` the same, direct orientation only
+``default_mean`` the same with distances in mean units (the papers'); ``default_median`` = ``default``
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
 ``default_hf`` ``default_2026_11`` + 3 × height functions (Wang et al. 2012), a cross-validation candidate
 ``height_functions`` height functions alone  squared L2   cyclic DP, both orientations
@@ -25,8 +26,9 @@ shape against the other one and against its mirror image and keeps the better (o
 ``mirror``; ``mirror=False`` in the API, ``--method default_nomirror`` on the command line
 turn it off). Chosen by ``geoshape bench mirror2d`` (docs/RESULTS.md, "2D mirror-aware
 matching"); kept against ``default_hf`` (+ height functions) and the same on 128 contour
-points, and its cyclic DP given 16 starts per orientation instead of 4 (of 4, 6, 8, 16 and
-128 points), by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
+points, its cyclic DP given 16 starts per orientation instead of 4 (of 4, 6, 8, 16 and 128
+points) and its histograms' distances measured in median instead of mean units, by
+``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
 cross-validated choice": best worst-case bull's-eye over nine dev collections).
 
 Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
@@ -115,34 +117,49 @@ _TRANSFORMS = ("raw", "hist")
 
 _DEFAULT_PARTS = (("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist", {}),
                   ("gsc", 0.005, "raw", {}))
+#: The same parts with distances in median units (robust to parts added or lost).
+_MEDIAN_PARTS = (("idsc", 1.0, "hist", dict(n_r=5, normalize_by="median")),
+                 ("shape_context", 0.5, "hist", dict(normalize_by="median")), ("gsc", 0.005, "raw", {}))
 
 #: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
 #: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image (the
 #: cyclic DP then tries ``n_starts`` starts per orientation: the best ``2·n_starts`` over both).
 CONTOUR_METHODS: dict[str, dict] = {
-    # 16 starts per orientation (32 in all with the mirror image): of 4, 6, 8 and 16 per
-    # orientation and 128 contour points, the best worst-case bull's-eye over the nine dev
-    # collections within twice the matrix time of 4, 8 tying it within 0.05 points at a lower
-    # mean mAP (docs/RESULTS.md, "2D default method: cross-validated choice"); n_starts = N is
-    # the exact cyclic DP.
+    # Histogram distances in median units (robust to parts added or lost) and 16 cyclic-DP
+    # starts per orientation (32 in all with the mirror image): each the best worst-case
+    # bull's-eye over the nine dev collections within twice the matrix time of
+    # default_2026_11 (docs/RESULTS.md, "2D default method: cross-validated choice"; 8 starts
+    # tie 16 within 0.05 points at a lower mean mAP). n_starts = N is the exact cyclic DP.
     "default": dict(
-        parts=_DEFAULT_PARTS,
+        parts=_MEDIAN_PARTS,
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
         mirror=True,
-        summary="inner-distance SC 5x12 + 0.5 shape context + 0.005 geodesic SC, cyclic DP "
-        "(16 starts per orientation), mirror images too",
+        summary="inner-distance SC 5x12 + 0.5 shape context (distances in median units) + 0.005 "
+        "geodesic SC, cyclic DP (16 starts per orientation), mirror images too",
     ),
     "default_nomirror": dict(
-        parts=_DEFAULT_PARTS,
+        parts=_MEDIAN_PARTS,
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
         mirror=False,
         summary="the default, direct orientation only (no mirror images)",
+    ),
+    "default_mean": dict(
+        parts=_DEFAULT_PARTS,
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
+        mirror=True,
+        summary="the default with the histograms' distances in mean units (as the papers)",
     ),
     "default_2026_11": dict(
         parts=_DEFAULT_PARTS,
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
         mirror=True,
         summary="the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
+    ),
+    "default_median": dict(
+        parts=_MEDIAN_PARTS,
+        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
+        mirror=True,
+        summary="the default (its name in the cross-validation that chose median units)",
     ),
     "default_hf": dict(
         parts=_DEFAULT_PARTS + (("height_functions", 3.0, "raw", {}),),
