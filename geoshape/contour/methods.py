@@ -124,43 +124,35 @@ _MEDIAN_PARTS = (("idsc", 1.0, "hist", dict(n_r=5, normalize_by="median")),
 #: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
 #: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image (the
 #: cyclic DP then tries ``n_starts`` starts per orientation: the best ``2·n_starts`` over both).
+#: The default: histogram distances in median units (robust to parts added or lost) and 16
+#: cyclic-DP starts per orientation (32 in all with the mirror image), each the best worst-case
+#: bull's-eye over the nine dev collections within twice the matrix time of default_2026_11
+#: (docs/RESULTS.md, "2D default method: cross-validated choice"; 8 starts tie 16 within 0.05
+#: points at a lower mean mAP). n_starts = N is the exact cyclic DP.
+_DEFAULT = dict(
+    parts=_MEDIAN_PARTS,
+    metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
+    mirror=True,
+    summary="inner-distance SC 5x12 + 0.5 shape context (distances in median units) + 0.005 "
+    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too",
+)
+
+
+def _variant(summary: str, **changes) -> dict:
+    """The default with ``changes`` (and its own ``matcher_options`` dict)."""
+    out = dict(_DEFAULT, summary=summary, **changes)
+    out["matcher_options"] = dict(out["matcher_options"])
+    return out
+
+
 CONTOUR_METHODS: dict[str, dict] = {
-    # Histogram distances in median units (robust to parts added or lost) and 16 cyclic-DP
-    # starts per orientation (32 in all with the mirror image): each the best worst-case
-    # bull's-eye over the nine dev collections within twice the matrix time of
-    # default_2026_11 (docs/RESULTS.md, "2D default method: cross-validated choice"; 8 starts
-    # tie 16 within 0.05 points at a lower mean mAP). n_starts = N is the exact cyclic DP.
-    "default": dict(
-        parts=_MEDIAN_PARTS,
-        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-        mirror=True,
-        summary="inner-distance SC 5x12 + 0.5 shape context (distances in median units) + 0.005 "
-        "geodesic SC, cyclic DP (16 starts per orientation), mirror images too",
-    ),
-    "default_nomirror": dict(
-        parts=_MEDIAN_PARTS,
-        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-        mirror=False,
-        summary="the default, direct orientation only (no mirror images)",
-    ),
-    "default_mean": dict(
-        parts=_DEFAULT_PARTS,
-        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-        mirror=True,
-        summary="the default with the histograms' distances in mean units (as the papers)",
-    ),
-    "default_2026_11": dict(
-        parts=_DEFAULT_PARTS,
-        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
-        mirror=True,
-        summary="the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
-    ),
-    "default_median": dict(
-        parts=_MEDIAN_PARTS,
-        metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-        mirror=True,
-        summary="the default (its name in the cross-validation that chose median units)",
-    ),
+    "default": _DEFAULT,
+    "default_nomirror": _variant("the default, direct orientation only (no mirror images)", mirror=False),
+    "default_mean": _variant("the default with the histograms' distances in mean units (as the papers)",
+                             parts=_DEFAULT_PARTS),
+    "default_2026_11": _variant("the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
+                                parts=_DEFAULT_PARTS, matcher_options=dict(skip_cost=0.3, n_starts=4)),
+    "default_median": _variant("the default (its name in the cross-validation that chose median units)"),
     "default_hf": dict(
         parts=_DEFAULT_PARTS + (("height_functions", 3.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=4),
