@@ -41,8 +41,8 @@ def log_polar_histograms(dist: np.ndarray, angle: np.ndarray, *, n_r: int = 5, n
         Divide distances by the mean (or the median) off-diagonal distance first. The median
         is the robust choice: a part added or lost (a notch, a spur of boundary noise, a leg
         cut off) moves many long distances and so the mean, which shifts every radial bin;
-        the median moves less. On silhouettes the two are within a few per cent (Tari-1000:
-        mean / median of the inner distances 1.01 on average), so the bins keep their meaning.
+        the median moves less. Where no part dominates the distances the two units are
+        close, so the bins keep their meaning.
 
     Returns
     -------
