@@ -134,14 +134,18 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 def _method_points(method: str) -> tuple[str, int, dict]:
     """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
     points (100 unless given); ``+skipX`` overrides the DP skip cost (X > 0), ``+startsK`` the
-    cyclic DP's starts per orientation (K ≥ 1), in either order, before ``@``. Anything else
-    raises :class:`~geoshape.errors.InvalidOptionError` naming it, before any work.
+    cyclic DP's starts per orientation (K ≥ 1), ``+wNAME=X`` the weight of the method's
+    descriptor part ``NAME`` (X ≥ 0), in any order, before ``@``. Anything else raises
+    :class:`~geoshape.errors.InvalidOptionError` naming it, before any work.
 
     >>> _method_points("default_hf"), _method_points("default+skip0.4@128")
     (('default_hf', 100, {}), ('default', 128, {'skip_cost': 0.4}))
     >>> _method_points("default+starts8+skip0.2")
     ('default', 100, {'n_starts': 8, 'skip_cost': 0.2})
+    >>> [p[:2] for p in _method_points("default_2026_11+wshape_context=1")[2]["parts"]]
+    [('idsc', 1.0), ('shape_context', 1.0), ('gsc', 0.005)]
     """
+    from geoshape.contour.methods import CONTOUR_METHODS
     from geoshape.errors import InvalidOptionError
 
     rest, at, n = method.partition("@")
@@ -155,10 +159,16 @@ def _method_points(method: str) -> tuple[str, int, dict]:
             if mod.startswith("starts") and int(mod[6:]) >= 1:
                 overrides["n_starts"] = int(mod[6:])
                 continue
+            name, eq, weight = mod[1:].partition("=")
+            parts = overrides.get("parts", CONTOUR_METHODS.get(base, {}).get("parts", ()))
+            if mod.startswith("w") and eq and float(weight) >= 0 and name in [p[0] for p in parts]:
+                overrides["parts"] = tuple((p[0], float(weight), *p[2:]) if p[0] == name else p
+                                           for p in parts)
+                continue
         except ValueError:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
-                                 "+startsK with K >= 1)")
+                                 "+startsK with K >= 1, +wNAME=X with NAME a part of the method)")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else 100, overrides
@@ -353,7 +363,9 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
 
     def extra(m):
         _, n, over = _method_points(m)
-        return f", {n} contour points" + "".join(f", {k} {v:g} instead" for k, v in over.items())
+        return f", {n} contour points" + "".join(
+            f", weights {', '.join(f'{p[0]} {p[1]:g}' for p in v)} instead" if k == "parts" else
+            f", {k} {v:g} instead" for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
     same = [m for m in methods if _effective(m) == _effective("default")]
