@@ -109,6 +109,10 @@ def main(argv: list[str] | None = None, *, isolate: bool | None = None) -> int:
             return 130
         except BrokenPipeError:
             return 0
+        except OSError as exc:  # a path the system refuses (too long, no permission, ...)
+            where = f"{exc.filename}: " if exc.filename else ""
+            print(f"geoshape {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+            return 2
         return int(status or 0)
 
     from geoshape.cli.isolation import can_isolate, run_isolated
@@ -120,8 +124,17 @@ def main(argv: list[str] | None = None, *, isolate: bool | None = None) -> int:
     outputs = [Path(getattr(args, dest)) for dest in (getattr(args, "outputs", None) or {})
                if getattr(args, dest, None)]
     given = sys.argv[1:] if argv is None else argv
-    inputs = [a for a in given if not a.startswith("-") and Path(a).exists() and Path(a) not in outputs]
+    inputs = [a for a in given if not a.startswith("-") and _is_path(a) and Path(a) not in outputs]
     return run_isolated(work, command=args.command, inputs=inputs, outputs=outputs)
+
+
+def _is_path(arg: str) -> bool:
+    """Whether a command-line argument names an existing file or folder (a list of names
+    longer than the system allows, or one with a NUL byte, is not one)."""
+    try:
+        return Path(arg).exists()
+    except (OSError, ValueError):
+        return False
 
 
 if __name__ == "__main__":

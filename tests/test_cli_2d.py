@@ -89,3 +89,27 @@ def test_demo_runs(tmp_path, capsys):
     # (before the distortion tie-break it chose a map 0.09 diagonals off, as isometric as it)
     assert summary["orientation"] > 0
     assert summary["median_error"] < 0.02
+
+
+def test_a_path_the_system_refuses_is_one_line_and_exit_2(tmp_path, capsys):
+    """A folder name longer than the file system allows (OSError, not a GeoshapeError) stops
+    the command with one line naming it, not a traceback."""
+    too_long = str(tmp_path / ("x" * 300))
+    matrix = tmp_path / "D.npy"
+    assert main(["retrieval2d", too_long, "--matrix", str(matrix), "--backend", "serial"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("geoshape retrieval2d: error: ") and "x" * 300 in err[0]
+    assert "File name too long" in err[0] and not matrix.exists()
+
+
+def test_an_argument_too_long_for_a_path_is_not_taken_for_one(tmp_path, capfd):
+    """The isolated command line looks for input files among the arguments; a long method
+    list is not a path and must not stop it with a traceback."""
+    from geoshape.cli.isolation import can_isolate
+
+    if not can_isolate():
+        pytest.skip("needs fork (POSIX)")
+    methods = "default," + "x" * 300
+    status = main(["bench", "mirror2d", "--matrix-dir", str(tmp_path), "--methods", methods, "--no-write"],
+                  isolate=True)
+    assert status == 2 and "method must be one of" in capfd.readouterr().err  # the child's stderr
