@@ -368,7 +368,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
             f", {k} {v:g} instead" for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
-    same = [m for m in methods if _effective(m) == _effective("default")]
+    default = _effective("default")
+    same = [m for m in methods if _effective(m) == default]
     return (
         "## 2D default method: cross-validated choice\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "
@@ -376,7 +377,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
         "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X; "
-        "`+startsK`: K cyclic-DP starts per orientation). "
+        "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
+        "NAME). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
         "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
         f"Candidates:\n\n{what}\n\n"

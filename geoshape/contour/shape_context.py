@@ -91,10 +91,10 @@ def shape_context(P, *, n_r: int = 5, n_theta: int = 12, r_inner: float = 0.125,
     n_r, n_theta, r_inner, r_outer :
         Belongie et al.'s defaults: 5 log-radial bins between 1/8 and 2 mean distances,
         12 angular bins.
-    normalize_by : {"mean", "median"}
-        The distance unit (:func:`log_polar_histograms`): the paper's mean, or the median.
     rotation_invariant : bool
         Measure angles from the tangent at each point (otherwise from the x axis).
+    normalize_by : {"mean", "median"}
+        The distance unit (:func:`log_polar_histograms`): the paper's mean, or the median.
 
     Returns
     -------
