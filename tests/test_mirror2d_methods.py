@@ -17,8 +17,8 @@ def test_method_names_parse():
     assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
     assert mirror2d._method_points("default+skip0.4") == ("default", 100, {"skip_cost": 0.4})
     assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
-    weighted = mirror2d._method_points("default+wgsc=0.01")[2]["parts"]
-    assert [p[1] for p in weighted] == [1.0, 0.5, 0.01]
+    weighted = mirror2d._method_points("default_median+wgsc=0.01")[2]["parts"]
+    assert [p[1] for p in weighted] == [1.0, 0.5, 0.01]  # only the named part's weight moves
     for bad in ("default+starts", "default+skipX", "default+fast", "default+starts0", "default+skip-1",
                 "default@abc", "default@4", "default@128+starts8", "default+wcurvature_map=1",
                 "default+wgsc=-1", "default+wgsc"):
