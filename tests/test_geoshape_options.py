@@ -97,7 +97,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 28
+    assert len(GeoshapeOptions.names()) == 29
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
@@ -280,6 +280,18 @@ def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkey
     [repaired] = pipeline.orientation_repair(ctx, [direct, mirrored], options, {})
     assert repaired.source == "repaired" and not repaired.unwanted and repaired.refined_orientation > 0.5
     assert np.median(np.linalg.norm(V[repaired.refined_map] - V, axis=1)) < 0.02 * size
+    # the repaired map would win (lower score than the direct one): the direct map goes through
+    # the same solve (like against like), and the exact map stays exact
+    repaired.distortion, repaired.refined_energy = 0.1, 0.1  # score 0.01 against the direct map's 0.25
+    [polished] = pipeline.polish_against_repair(ctx, [direct, mirrored, repaired], options, {})
+    assert polished.source == "polished" and not polished.unwanted
+    assert np.median(np.linalg.norm(V[polished.refined_map] - V, axis=1)) < 0.02 * size
+    # no polish when the repair would not win, or when it is off
+    repaired.distortion, repaired.refined_energy = 10.0, 1.0
+    assert pipeline.polish_against_repair(ctx, [direct, mirrored, repaired], options, {}) == []
+    repaired.distortion, repaired.refined_energy = 0.1, 0.1
+    off = dataclasses.replace(options, polish_wanted=False)
+    assert pipeline.polish_against_repair(ctx, [direct, mirrored, repaired], off, {}) == []
     # large-mesh mode: maps live on the refinement samples; the same repair
     monkeypatch.setattr(pipeline, "LARGE_MESH", 500)
     small = dataclasses.replace(options, zoomout_samples=400, screen_samples=200)

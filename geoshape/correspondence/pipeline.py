@@ -160,6 +160,8 @@ class GeoshapeOptions:
     """Add the best mirrored map re-solved with the orientation term, pinned by its ends."""
     repair_landmarks: int = field(default=8, metadata=_int(1))
     """Landmarks pinning the orientation repair: the first farthest samples of mesh 1 (a body's ends)."""
+    polish_wanted: bool = field(default=True, metadata=_BOOL)
+    """When the repaired map would win, also re-solve the best other wanted map the same way."""
 
     def __post_init__(self):
         check_choice("geoshape option reorder", self.reorder, REORDER_METHODS)
@@ -755,8 +757,9 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
                        timings: dict) -> list[Candidate]:
     """Stage 4c: the refined map of unwanted orientation with the lowest :func:`decision_score`,
     re-solved as a functional map with the orientation term and descriptors pinned by its
-    own ends (a list of one); empty when no refined map has the unwanted orientation (or
-    ``orientation_repair`` is off, or fewer than 3 eigenpairs are usable).
+    own ends (:func:`landmark_resolve`; a list of one); empty when no refined map has the
+    unwanted orientation (or ``orientation_repair`` is off, or fewer than 3 eigenpairs are
+    usable). :func:`polish_against_repair` may follow.
 
     Why: on a human body the spectral candidates can come out mirrored front↔back on the
     torso only, with the hands, feet and head in the right place (orientation score about
@@ -776,23 +779,70 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     source = repair_source(ctx, refined, options)
     if source is None:
         return []
-    kd = min(options.descriptor_k, ctx.lb_k)
     t = time.perf_counter()
-    ends1, at = repair_landmarks(ctx, options)
-    ends2 = source.refined_map[at]
-    from geoshape.correspondence.fmaps.descriptor_fmap import (
-        descriptor_functional_map,
-        operators_of_descriptors,
-    )
-    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
-
-    ops1, ops2 = (operators_of_descriptors(m.V, m.F, basis, _distance_functions(m, ends), k=kd)
-                  for m, basis, ends in ((ctx.m1, ctx.b1, ends1), (ctx.m2, ctx.b2, ends2)))
-    C = descriptor_functional_map(ops1, ops2, orientation=options.prefer)
-    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
-    out = [_refine_into(ctx, Candidate("repaired"), init, options, on_refinement_rows=True, k_start=kd)]
+    out = [landmark_resolve(ctx, source, options, "repaired")]
     timings["orientation_repair"] = time.perf_counter() - t
     return out
+
+
+def polish_against_repair(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
+                          timings: dict) -> list[Candidate]:
+    """Stage 4c′: when the repaired map (:func:`orientation_repair`, its distortion measured)
+    would win :func:`decide`, the other map of the wanted orientation with the lowest
+    :func:`decision_score` re-solved the same way (:func:`landmark_resolve`), so that the
+    decision compares like with like (a list of one; empty when ``polish_wanted`` is off or
+    the repair would not win).
+
+    Why: a map re-solved from landmark distance functions keeps geodesic distances better
+    than one that was not, whatever its error: on a stretched pair the repaired half-turn had
+    a lower stress than the right map (docs/correspondence3d.md). The polished map is often
+    also the more precise one. Only when the repair would decide, so the cost (one solve and
+    one refinement, mesh 1's operators reused from the repair) is paid where it matters.
+    Polishing every wanted map instead was no better on the non-isometric dev sets and costs
+    one solve per map (docs/correspondence3d.md).
+    """
+    if not (options.polish_wanted and refined and decide(refined).source == "repaired"):
+        return []
+    others = [c for c in refined if not c.unwanted and c.source != "repaired"]
+    if not others:
+        return []
+    t = time.perf_counter()
+    out = [landmark_resolve(ctx, min(others, key=decision_score), options, "polished")]
+    timings["polish"] = time.perf_counter() - t
+    return out
+
+
+def landmark_operators1(ctx: PairContext, options: GeoshapeOptions):
+    """Mesh 1's operators of :func:`landmark_resolve` (its landmarks' distance functions),
+    cached on mesh 1 per landmark set and basis size."""
+    kd = min(options.descriptor_k, ctx.lb_k)
+    ends1, _ = repair_landmarks(ctx, options)
+    return ctx.m1.cached(("landmark_operators", ends1.tobytes(), kd, ctx.lb_k),
+                         lambda: _landmark_operators(ctx.m1, ctx.b1, ends1, kd))
+
+
+def _landmark_operators(m: PreparedMesh, basis, landmarks: np.ndarray, kd: int):
+    """Descriptor operators (``kd`` eigenpairs) of the geodesic distance functions of ``landmarks``."""
+    from geoshape.correspondence.fmaps.descriptor_fmap import operators_of_descriptors
+
+    return operators_of_descriptors(m.V, m.F, basis, _distance_functions(m, landmarks), k=kd)
+
+
+def landmark_resolve(ctx: PairContext, source: Candidate, options: GeoshapeOptions, name: str) -> Candidate:
+    """``source``'s refined map re-solved as a functional map with the orientation term and,
+    as descriptors, the geodesic distance functions of :func:`repair_landmarks` on mesh 1 and
+    of their images under ``source`` on mesh 2, then refined from ``descriptor_k``: a new
+    :class:`Candidate` named ``name``. Cost: Dijkstra from the landmarks (mesh 1's operators
+    cached per pair), the operators O(m kd (kd + L)), one kd² solve, one refinement."""
+    from geoshape.correspondence.fmaps.descriptor_fmap import descriptor_functional_map
+    from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
+
+    kd = min(options.descriptor_k, ctx.lb_k)
+    _, at = repair_landmarks(ctx, options)
+    ops2 = _landmark_operators(ctx.m2, ctx.b2, source.refined_map[at], kd)
+    C = descriptor_functional_map(landmark_operators1(ctx, options), ops2, orientation=options.prefer)
+    init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
+    return _refine_into(ctx, Candidate(name), init, options, on_refinement_rows=True, k_start=kd)
 
 
 def repair_source(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> Candidate | None:
@@ -1109,6 +1159,9 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         repaired = orientation_repair(ctx, refined, options, timings)
         measure_distortion(ctx, repaired, options, timings)
         refined += repaired
+        polished = polish_against_repair(ctx, refined, options, timings)
+        measure_distortion(ctx, polished, options, timings)
+        refined += polished
         completed = complete_symmetry(ctx, refined, options, timings)
         if completed is not None:
             measure_distortion(ctx, [completed], options, timings)
