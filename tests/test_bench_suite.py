@@ -146,6 +146,17 @@ def test_suite_smoke_on_a_tiny_generated_set(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "tiny" / "generator.json").is_file()
 
 
+def test_a_named_section_is_written_and_named_in_the_command(tmp_path, monkeypatch, capsys):
+    """A run into its own section (e.g. the slow high-resolution set) leaves the suite table
+    alone, and its command line says the section, so running it again rewrites the same one."""
+    args = _tiny_suite_args(tmp_path, monkeypatch, section="correspondence-generalization-tiny")
+    assert suite.run_suite(args) == 0
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert "<!-- BEGIN correspondence-generalization-tiny -->" in text
+    assert f"<!-- BEGIN {suite.SECTION} -->" not in text
+    assert "--limit 1 --section correspondence-generalization-tiny" in text
+
+
 def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_path, monkeypatch):
     monkeypatch.setattr(suite, "sensitivity_variants",
                         lambda fields: [("n_refine 5 → 2 (×0.5)", {"n_refine": 2})] * ("n_refine" in fields))

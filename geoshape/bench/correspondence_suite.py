@@ -269,7 +269,9 @@ def _sets_flag(args, sets) -> str:
 
 
 def _limit_flag(args) -> str:
-    return f" --limit {args.limit}" if args.limit else ""
+    """``--limit`` as typed, and ``--section`` when given (so the command rewrites the same section)."""
+    section = f" --section {args.section}" if getattr(args, "section", None) else ""
+    return (f" --limit {args.limit}" if args.limit else "") + section
 
 
 def _mean_failures(mean: float, failures: int) -> str:
