@@ -11,8 +11,9 @@
    beside :func:`descriptor_candidates`;
 4. :func:`refine` — the best-ranked screened candidates refined by ZoomOut, plus the
    descriptor candidates (wave kernel signatures), :func:`measure_distortion`,
-   :func:`orientation_repair` of the best mirrored map and, when the best map is still
-   mirrored, :func:`complete_symmetry`;
+   :func:`orientation_repair` of the best mirrored map, :func:`polish_against_repair` when
+   the repaired map would win, and, when the best map is still mirrored,
+   :func:`complete_symmetry`;
 5. :func:`decide` — the wanted orientation, then one objective, :func:`decision_score`;
 6. :func:`full_resolution` — the chosen map at every vertex of both meshes, then a
    full-resolution ZoomOut to :func:`final_basis_size` and a soft last read-off for precision.
