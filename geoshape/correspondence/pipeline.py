@@ -1107,7 +1107,7 @@ def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOption
 def alternatives(ranked: list[Candidate], refined: list[Candidate]) -> list[dict]:
     """``Correspondence.alternatives``: every screened candidate by :func:`screening_score`, then
     every refined candidate that is not a signed order (descriptor maps, the orientation
-    repair; see :meth:`Candidate.summary`)."""
+    repair, the polish; see :meth:`Candidate.summary`)."""
     return [c.summary() for c in ranked] + [c.summary() for c in refined if c.alignment is None]
 
 
