@@ -268,7 +268,7 @@ def _sets_flag(args, sets) -> str:
     return f" --sets {','.join(s.name for s, _ in sets)}" if getattr(args, "sets", None) else ""
 
 
-def _limit_flag(args) -> str:
+def _limit_and_section_flags(args) -> str:
     """``--limit`` as typed, and ``--section`` when given (so the command rewrites the same section)."""
     section = f" --section {args.section}" if getattr(args, "section", None) else ""
     return (f" --limit {args.limit}" if args.limit else "") + section
@@ -299,7 +299,7 @@ def _run_table(args, sets, methods, log) -> int:
                                           log=log)
         for m in methods:
             rows.append((spec.name, m, set_metrics([r for r in results if r.method == m], has_sym)))
-    only, limit = _sets_flag(args, sets), _limit_flag(args)
+    only, limit = _sets_flag(args, sets), _limit_and_section_flags(args)
     # the command as typed: pyFM is the default peer, not a method name
     given = f" --methods {args.methods}" if getattr(args, "methods", None) else ""
     peer = "" if getattr(args, "peer", "pyfm") == "pyfm" else f" --peer {args.peer}"
@@ -342,7 +342,7 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
             m = set_metrics(results, has_sym)
             row.append(_mean_failures(m["mean"], m["failures"]))
         body.append(row)
-    limit = _limit_flag(args)
+    limit = _limit_and_section_flags(args)
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
@@ -425,7 +425,7 @@ def _run_decision_weights(args, sets, log) -> int:
                    for s, _ in sets])
     factors = ", ".join(f"×{f:g}" for f in SENSITIVITY_FACTORS)
     exps = ", ".join(f"{e:g}" for e in DECISION_EXPONENTS)
-    only, limit = _sets_flag(args, sets), _limit_flag(args)
+    only, limit = _sets_flag(args, sets), _limit_and_section_flags(args)
     text = (f"### 3D correspondence — weights of the decision objective (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --decision-weights{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. One run of "

@@ -123,9 +123,10 @@ _PAPER_PARTS = (("idsc", 1.0, "hist", dict(n_r=5)), ("shape_context", 0.5, "hist
                 ("gsc", 0.005, "raw", {}))
 
 
-def _in_median_units(parts: tuple) -> tuple:
-    """``parts`` with every histogram's distances in median units (robust to parts added or lost)."""
-    return tuple((name, w, tr, {**opts, "normalize_by": "median"} if tr == "hist" else opts)
+def _in_units(parts: tuple, unit: str) -> tuple:
+    """``parts`` with every histogram's distances in ``unit`` (``"mean"`` as the papers, or
+    ``"median"``: robust to parts added or lost)."""
+    return tuple((name, w, tr, {**opts, "normalize_by": unit} if tr == "hist" else opts)
                  for name, w, tr, opts in parts)
 
 
@@ -135,7 +136,7 @@ def _reweighted(parts: tuple, **weights: float) -> tuple:
 
 
 #: The default of 2026-12-05 (``default_median``): the paper parts in median units.
-_MEDIAN_PARTS = _in_median_units(_PAPER_PARTS)
+_MEDIAN_PARTS = _in_units(_PAPER_PARTS, "median")
 #: The default's parts: median units, shape context at weight 0.25.
 _DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
 
@@ -171,7 +172,7 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default": _DEFAULT,
     "default_nomirror": _variant("the default, direct orientation only (no mirror images)", mirror=False),
     "default_mean": _variant("the default with the histograms' distances in mean units (as the papers)",
-                             parts=_reweighted(_PAPER_PARTS, shape_context=0.25)),
+                             parts=_in_units(_DEFAULT_PARTS, "mean")),
     "default_2026_11": _variant("the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
                                 parts=_PAPER_PARTS, matcher_options=dict(skip_cost=0.3, n_starts=4)),
     "default_median": _variant("median-unit histograms, 16 starts per orientation (the default of "

@@ -813,15 +813,6 @@ def polish_against_repair(ctx: PairContext, refined: list[Candidate], options: G
     return out
 
 
-def landmark_operators1(ctx: PairContext, options: GeoshapeOptions):
-    """Mesh 1's operators of :func:`landmark_resolve` (its landmarks' distance functions),
-    cached on mesh 1 per landmark set and basis size."""
-    kd = min(options.descriptor_k, ctx.lb_k)
-    ends1, _ = repair_landmarks(ctx, options)
-    return ctx.m1.cached(("landmark_operators", ends1.tobytes(), kd, ctx.lb_k),
-                         lambda: _landmark_operators(ctx.m1, ctx.b1, ends1, kd))
-
-
 def _landmark_operators(m: PreparedMesh, basis, landmarks: np.ndarray, kd: int):
     """Descriptor operators (``kd`` eigenpairs) of the geodesic distance functions of ``landmarks``."""
     from geoshape.correspondence.fmaps.descriptor_fmap import operators_of_descriptors
@@ -839,9 +830,12 @@ def landmark_resolve(ctx: PairContext, source: Candidate, options: GeoshapeOptio
     from geoshape.correspondence.fmaps.zoomout import p2p_from_functional_map
 
     kd = min(options.descriptor_k, ctx.lb_k)
-    _, at = repair_landmarks(ctx, options)
+    ends1, at = repair_landmarks(ctx, options)
+    # mesh 1's side is the same for the repair and the polish: cached per landmark set and size
+    ops1 = ctx.m1.cached(("landmark_operators", ends1.tobytes(), kd, ctx.lb_k),
+                         lambda: _landmark_operators(ctx.m1, ctx.b1, ends1, kd))
     ops2 = _landmark_operators(ctx.m2, ctx.b2, source.refined_map[at], kd)
-    C = descriptor_functional_map(landmark_operators1(ctx, options), ops2, orientation=options.prefer)
+    C = descriptor_functional_map(ops1, ops2, orientation=options.prefer)
     init = p2p_from_functional_map(ctx.b1, ctx.b2, C, rows1=ctx.s1 if ctx.large else None, rows2=ctx.s2)
     return _refine_into(ctx, Candidate(name), init, options, on_refinement_rows=True, k_start=kd)
 
