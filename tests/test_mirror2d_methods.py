@@ -13,15 +13,18 @@ from geoshape.errors import InvalidOptionError
 
 
 def test_method_names_parse():
-    assert mirror2d._method_points("default") == ("default", 100, {})
+    assert mirror2d._method_points("default") == ("default", 128, {})  # the default traces 128 points
+    assert mirror2d._method_points("default_100pt") == ("default_100pt", 100, {})
     assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
-    assert mirror2d._method_points("default+skip0.4") == ("default", 100, {"skip_cost": 0.4})
+    assert mirror2d._method_points("default+skip0.4") == ("default", 128, {"skip_cost": 0.4})
     assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
     weighted = mirror2d._method_points("default_median+wgsc=0.01")[2]["parts"]
     assert [p[1] for p in weighted] == [1.0, 0.5, 0.01]  # only the named part's weight moves
+    assert mirror2d._method_points("default+parts0+smooth0.005@64") == (
+        "default", 64, {"part_fraction": 0.0, "smoothing": 0.005})
     for bad in ("default+starts", "default+skipX", "default+fast", "default+starts0", "default+skip-1",
                 "default@abc", "default@4", "default@128+starts8", "default+wcurvature_map=1",
-                "default+wgsc=-1", "default+wgsc"):
+                "default+wgsc=-1", "default+wgsc", "default+parts-1", "default+smooth"):
         with pytest.raises(InvalidOptionError, match="bad (modifier|contour point count)"):
             mirror2d._method_points(bad)
 
@@ -60,3 +63,16 @@ def test_cache_is_keyed_by_what_a_method_computes(monkeypatch):
     entry = dict(methods.CONTOUR_METHODS["default"], matcher_options=dict(skip_cost=0.3, n_starts=3))
     monkeypatch.setitem(methods.CONTOUR_METHODS, "default", entry)
     assert mirror2d._cache_name("set", "default") != before
+
+
+def test_cache_is_keyed_by_the_contour_tracing(monkeypatch):
+    """The tracer's settings are part of what a matrix computes: changing its default, or naming
+    the default explicitly, behaves like any other spec change."""
+    from geoshape.geometry import contour
+
+    plain = mirror2d._cache_name("set", "default")
+    assert mirror2d._effective(f"default+parts{contour.PART_FRACTION}") == mirror2d._effective("default")
+    assert mirror2d._cache_name("set", "default+parts2") != plain
+    assert mirror2d._cache_name("set", "default+smooth0.01") != plain
+    monkeypatch.setattr(contour, "PART_FRACTION", 2.0)
+    assert mirror2d._cache_name("set", "default") != plain

@@ -70,6 +70,52 @@ def test_largest_component_outer_boundary_only():
     assert np.linalg.norm(P - [32, -32], axis=1).min() > 15
 
 
+def test_a_cut_off_part_stays_in_the_outline():
+    # A bar cut in two by a bite: both halves are the shape, joined by a thin corridor.
+    mask = np.zeros((64, 96), dtype=bool)
+    mask[24:40, 8:88] = True
+    mask[20:44, 46:52] = False  # the cut: halves of 608 and 576 pixels
+    P = extract_contour(mask, n_points=120)
+    assert P[:, 0].min() < 10 and P[:, 0].max() > 85
+    assert abs(signed_area(P) - mask.sum()) < 0.1 * mask.sum()  # two halves + a 3-px corridor
+    alone = extract_contour(mask, n_points=120, part_fraction=2.0)  # > 1: the largest part only
+    assert alone[:, 0].min() > 45 or alone[:, 0].max() < 52
+
+
+def test_join_parts_connects_every_part_and_drops_specks():
+    from skimage import measure
+
+    from geoshape.geometry.contour import join_parts
+
+    mask = _disk_mask(size=96, r=20, center=(48, 30))
+    mask |= _disk_mask(size=96, r=8, center=(48, 80))  # a part: 201 / 1257 of the largest
+    mask |= _disk_mask(size=96, r=6, center=(85, 30))  # another, nearest to the big disc
+    mask[2:4, 90:92] = True  # a speck: 4 pixels
+    labels = measure.label(mask, connectivity=2)
+    joined = join_parts(labels, min_fraction=0.02)
+    assert measure.label(joined, connectivity=2).max() == 1
+    assert joined[48, 80] and joined[85, 30] and not joined[2:4, 90:92].any()
+    assert (joined & ~mask).sum() < 3 * (50 + 40)  # only two corridors of width 3 were added
+    largest = np.bincount(labels.ravel())[1:].argmax() + 1
+    assert np.array_equal(join_parts(labels, min_fraction=2.0), labels == largest)
+
+
+def test_smoothing_removes_boundary_noise_at_any_scale():
+    from geoshape.geometry.contour import perimeter, smooth_contour
+
+    t = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+    bumpy = 1 + 0.03 * np.sign(np.sin(60 * t))  # 60 square bumps of 3 % of the radius
+    P = 50 * np.column_stack([bumpy * np.cos(t), bumpy * np.sin(t)])
+    S = smooth_contour(P, 0.005)
+    r = np.linalg.norm(S, axis=1)
+    assert r.std() < 0.2 * np.linalg.norm(P, axis=1).std() and abs(r.mean() - 50) < 1.0
+    big = smooth_contour(4 * P, 0.005)  # sigma is a share of the perimeter: no unit
+    assert np.allclose(np.linalg.norm(big, axis=1).std() / 4, r.std(), rtol=0.05)
+    assert np.array_equal(smooth_contour(P, 0.0), P)
+    circle = 2 * np.pi * 50
+    assert perimeter(P) > 1.5 * circle and perimeter(S) < 1.05 * circle  # the bumps' length is gone
+
+
 def test_border_touching_shape_closes():
     mask = np.zeros((40, 40), dtype=bool)
     mask[:, 10:30] = True  # touches top and bottom

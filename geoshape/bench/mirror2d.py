@@ -133,19 +133,23 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 
 def _method_points(method: str) -> tuple[str, int, dict]:
     """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
-    points (100 unless given); ``+skipX`` overrides the DP skip cost (X > 0), ``+startsK`` the
-    cyclic DP's starts per orientation (K ≥ 1), ``+wNAME=X`` the weight of the method's
-    descriptor part ``NAME`` (X ≥ 0), in any order, before ``@``. Anything else raises
-    :class:`~geoshape.errors.InvalidOptionError` naming it, before any work.
+    points (the method's own unless given: 128 for default, 100 for most); ``+skipX``
+    overrides the DP skip cost (X > 0), ``+startsK`` the cyclic DP's starts per orientation (K
+    ≥ 1), ``+wNAME=X`` the weight of the method's descriptor part ``NAME`` (X ≥ 0),
+    ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
+    :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (X ≥ 0,
+    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`), in any order,
+    before ``@``. Anything else raises :class:`~geoshape.errors.InvalidOptionError` naming it,
+    before any work.
 
-    >>> _method_points("default_hf"), _method_points("default+skip0.4@128")
-    (('default_hf', 100, {}), ('default', 128, {'skip_cost': 0.4}))
-    >>> _method_points("default+starts8+skip0.2")
-    ('default', 100, {'n_starts': 8, 'skip_cost': 0.2})
+    >>> _method_points("default_hf"), _method_points("default_100pt+skip0.4@128")
+    (('default_hf', 100, {}), ('default_100pt', 128, {'skip_cost': 0.4}))
+    >>> _method_points("default+starts8+skip0.2"), _method_points("default+parts0@100")
+    (('default', 128, {'n_starts': 8, 'skip_cost': 0.2}), ('default', 100, {'part_fraction': 0.0}))
     >>> [p[:2] for p in _method_points("default_2026_11+wshape_context=1")[2]["parts"]]
     [('idsc', 1.0), ('shape_context', 1.0), ('gsc', 0.005)]
     """
-    from geoshape.contour.methods import CONTOUR_METHODS
+    from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing
     from geoshape.errors import InvalidOptionError
 
     rest, at, n = method.partition("@")
@@ -155,6 +159,12 @@ def _method_points(method: str) -> tuple[str, int, dict]:
         try:
             if mod.startswith("skip") and float(mod[4:]) > 0:
                 overrides["skip_cost"] = float(mod[4:])
+                continue
+            if mod.startswith("smooth") and float(mod[6:]) >= 0:
+                overrides["smoothing"] = float(mod[6:])
+                continue
+            if mod.startswith("parts") and float(mod[5:]) >= 0:
+                overrides["part_fraction"] = float(mod[5:])
                 continue
             if mod.startswith("starts") and int(mod[6:]) >= 1:
                 overrides["n_starts"] = int(mod[6:])
@@ -168,19 +178,31 @@ def _method_points(method: str) -> tuple[str, int, dict]:
         except ValueError:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
-                                 "+startsK with K >= 1, +wNAME=X with NAME a part of the method)")
+                                 "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
+                                 "+partsX or +smoothX with X >= 0)")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
-    return base, int(n) if n else 100, overrides
+    return base, int(n) if n else contour_tracing(base)["n_points"], overrides
 
 
-def _effective(method: str) -> tuple[int, dict]:
-    """``(contour points, method spec with the overrides applied)`` of a ``--methods`` name:
+def _tracing(base: str, n_points: int, overrides: dict) -> tuple[int, float, float]:
+    """``(contour points, part fraction, smoothing)`` of method ``base`` on ``n_points`` points,
+    popping the tracer's overrides."""
+    from geoshape.contour.methods import contour_tracing
+
+    own = contour_tracing(base)
+    return (n_points, overrides.pop("part_fraction", own["part_fraction"]),
+            overrides.pop("smoothing", own["smoothing"]))
+
+
+def _effective(method: str) -> tuple[tuple, dict]:
+    """``(contour tracing, method spec with the overrides applied)`` of a ``--methods`` name:
     two names with the same effective spec compute the same matrix."""
     from geoshape.contour.methods import method_spec
 
     base, n, over = _method_points(method)
-    return n, {k: v for k, v in method_spec(base, **over).items() if k != "summary"}
+    tracing = _tracing(base, n, over)
+    return tracing, {k: v for k, v in method_spec(base, **over).items() if k not in ("summary", "tracing")}
 
 
 def _cache_name(name: str, method: str) -> str:
@@ -207,16 +229,17 @@ def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> d
     out, contours = {}, {}
     for method in methods:
         base, n_points, overrides = _method_points(method)
+        tracing = _tracing(base, n_points, overrides)
         path = work / f"{_cache_name(name, method)}.npy"
         meta = path.with_suffix(".json")
         if path.is_file() and meta.is_file():
             out[method] = (np.load(path), json.loads(meta.read_text()))
             continue
-        if n_points not in contours:
-            contours[n_points] = load_contours([it.path for it in read_labels(folder)], n_points)
+        if tracing not in contours:
+            contours[tracing] = load_contours([it.path for it in read_labels(folder)], *tracing)
         print(f"[{name}] {method} …", flush=True)
         t0 = time.perf_counter()
-        sigs = contour_signatures(contours[n_points], base, n_jobs=n_jobs, **overrides)
+        sigs = contour_signatures(contours[tracing], base, n_jobs=n_jobs, **overrides)
         t1 = time.perf_counter()
         D = shape_distance_matrix(None, base, signatures=sigs, n_jobs=n_jobs, **overrides)
         info = {"matrix_s": time.perf_counter() - t1, "load": os.getloadavg()[0],
@@ -376,9 +399,11 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
-        "`METHOD@N`: the method on N contour points instead of 100; `+skipX`: DP skip cost X; "
+        "`METHOD@N`: the method on N contour points instead of its own (100 for all but default); "
+        "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
-        "NAME). "
+        "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "
+        "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
         "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
         f"Candidates:\n\n{what}\n\n"

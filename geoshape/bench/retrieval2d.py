@@ -13,13 +13,29 @@ ALL_METHODS = ("default", "gsc", "shape_context", "idsc", "curvature_map")
 def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
     parser.add_argument("--methods", default=",".join(default_methods),
                         help=f"comma-separated methods (default: {','.join(default_methods)})")
-    parser.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    parser.add_argument("--n-points", type=int, default=None,
+                        help="contour points of every method (default: each method's, 128 for "
+                        "default, 100 for most)")
     parser.add_argument("--backend", default=None, help="processes (default), serial, dask")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--matrix-dir", default=None,
                         help="also save each method's matrix as <dir>/<set>_<method>.npy")
     parser.add_argument("--no-write", action="store_true",
                         help="print the table but do not update docs/RESULTS.md")
+
+
+def points_note(n_points: int | None, method: str | None = None) -> str:
+    """How a benchmark's contours were traced, for its command line's note."""
+    from geoshape.contour.methods import contour_tracing
+
+    if n_points:
+        return f"{n_points} contour points"
+    if method:
+        t = contour_tracing(method)
+        return (f"{t['n_points']} contour points smoothed by {t['smoothing']:g} x the perimeter "
+                f"({method}'s tracing)")
+    return ("each method's contour tracing (default: 128 points smoothed by 0.0025 x the perimeter; "
+            "the others: 100)")
 
 
 def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
@@ -78,7 +94,7 @@ def _section(dataset, args, methods, rows, intro, primary) -> str:
     jobs = f" --n-jobs {args.n_jobs}" if args.n_jobs else ""
     return (f"## 2D retrieval: {dataset}\n\n{intro}\n\n"
             f"Command: `geoshape bench {dataset} --methods {','.join(methods)}{jobs}`{done} "
-            f"({stamp}, {args.n_points} contour points, backend {args.backend or 'processes'}, "
+            f"({stamp}, {points_note(args.n_points)}, backend {args.backend or 'processes'}, "
             f"{workers_note(workers)}, {platform.machine()}; 'all-pairs s' is the wall time of "
             f"descriptors + all-pairs matrix, measured on a machine shared with other jobs, "
             f"so an upper bound; all-pairs search `auto`: coarse-to-fine for the cyclic-DP methods "

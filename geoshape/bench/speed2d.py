@@ -20,7 +20,8 @@ TARGET_SECONDS = 240.0
 
 def add_arguments(parser) -> None:
     parser.add_argument("--sizes", default="1000,1400", help="collection sizes (default 1000,1400)")
-    parser.add_argument("--n-points", type=int, default=100, help="contour points (default 100)")
+    parser.add_argument("--n-points", type=int, default=None,
+                        help="contour points (default: the default method's, 128)")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the perturbed copies (default 0)")
     parser.add_argument("--reference", default=None,
@@ -31,24 +32,29 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-write", action="store_true", help="print only")
 
 
-def extended_collection(n_total: int, n_points: int, seed: int):
-    """Tari-1000 contours and labels, then ``n_total − 1000`` perturbed copies (seeded)."""
+def extended_collection(n_total: int, n_points: int | None, seed: int):
+    """Tari-1000 contours and labels, then ``n_total − 1000`` perturbed copies (seeded), traced
+    as the default method's (``n_points`` overrides its point count)."""
     import numpy as np
     from geoshape_datasets_gen.perturb2d import PERTURBATIONS, perturb_mask
 
+    from geoshape.contour.methods import DEFAULT_METHOD, contour_tracing
     from geoshape.geometry.contour import extract_contour
     from geoshape.io.datasets import dataset_dir, read_labels
     from geoshape.io.silhouette import load_silhouette
 
+    tracing = contour_tracing(DEFAULT_METHOD)
+    if n_points is not None:
+        tracing["n_points"] = n_points
     items = read_labels(dataset_dir("tari1000"))
-    contours = [extract_contour(load_silhouette(it.path), n_points, name=str(it.path)) for it in items]
+    contours = [extract_contour(load_silhouette(it.path), name=str(it.path), **tracing) for it in items]
     labels = [it.label for it in items]
     rng = np.random.default_rng(seed)
     n_extra = max(0, n_total - len(items))
     for t, src in enumerate(rng.choice(len(items), size=n_extra, replace=n_extra > len(items))):
         kind = PERTURBATIONS[t % len(PERTURBATIONS)]
         mask = perturb_mask(load_silhouette(items[src].path), kind, rng, index=t, parity=0)
-        contours.append(extract_contour(mask, n_points, name=f"{items[src].path} ({kind})"))
+        contours.append(extract_contour(mask, name=f"{items[src].path} ({kind})", **tracing))
         labels.append(labels[src])
     return contours[:n_total], labels[:n_total]
 
@@ -104,6 +110,7 @@ def run(args) -> int:
     import numpy as np
 
     from geoshape.bench.results import markdown_table, update_results_section
+    from geoshape.bench.retrieval2d import points_note
     from geoshape.contour.retrieval import REFINE_K, contour_signatures, shape_distance_matrix
     from geoshape.retrieval.rerank import rerank
 
@@ -145,7 +152,7 @@ def run(args) -> int:
         f"Command: `geoshape bench speed2d --sizes {','.join(map(str, sizes))}"
         f"{'' if args.search == 'auto' else ' --search ' + args.search}"
         f"{' --reference ' + os.path.basename(args.reference) if args.reference else ''}` "
-        f"({time.strftime('%Y-%m-%d')}, {args.n_points} contour points, processes, {workers} "
+        f"({time.strftime('%Y-%m-%d')}, {points_note(args.n_points, 'default')}, processes, {workers} "
         f"workers, {platform.machine()}; 2 cores shared with other jobs, 1-min load average "
         f"{load:.1f} at the end ('load': after each size), so the times are upper bounds). "
         "Collection: Tari-1000, then "

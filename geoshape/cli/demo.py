@@ -38,7 +38,7 @@ def run(args) -> int:
 
     from geoshape.bench.results import markdown_table
     from geoshape.cli._common import to_jsonable
-    from geoshape.contour.methods import CONTOUR_METHODS, match_contours, method_spec
+    from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing, match_contours, method_spec
     from geoshape.contour.retrieval import retrieval_on_folder
     from geoshape.errors import InvalidOptionError
     from geoshape.geometry.contour import contour_from_image
@@ -55,7 +55,7 @@ def run(args) -> int:
     paths = generate_silhouettes(sil, per_class=args.per_class, seed=args.seed)
 
     a, b = paths[0], paths[1]  # two poses of the first class (person)
-    P, Q = contour_from_image(a), contour_from_image(b)
+    P, Q = (contour_from_image(path, **contour_tracing(args.method)) for path in (a, b))
     p2p, cost = match_contours(P, Q, method=args.method)
     plot_contour_matching(P, Q, p2p, out / "match2d.png",
                           title=f"{a.name} ↔ {b.name} ({args.method}, cost {cost:.3g})")

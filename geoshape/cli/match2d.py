@@ -22,7 +22,8 @@ def register(subparsers) -> None:
     p.add_argument("--method", default="default", help=METHOD_HELP)
     p.add_argument("--matcher", default=None,
                    help="override the method's matcher: best, proximity, hungarian, dp")
-    p.add_argument("--n-points", type=CONTOUR_POINTS, default=100, help="contour points (default 100)")
+    p.add_argument("--n-points", type=CONTOUR_POINTS, default=None,
+                   help="contour points (default: the method's, 128 for default, 100 for most)")
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours side by side, upright, matched points "
                    "coloured alike (unmatched grey)")
@@ -41,13 +42,16 @@ def run(args) -> int:
 
     import numpy as np
 
-    from geoshape.contour.methods import match_contours, method_spec
+    from geoshape.contour.methods import contour_tracing, match_contours, method_spec
     from geoshape.geometry.contour import contour_from_image
     from geoshape.io.atomic import write_text_atomic
 
     method_spec(args.method, matcher=args.matcher)  # options checked before any work
-    P = contour_from_image(args.image_a, args.n_points)
-    Q = contour_from_image(args.image_b, args.n_points)
+    tracing = contour_tracing(args.method)
+    if args.n_points is not None:
+        tracing["n_points"] = args.n_points
+    P = contour_from_image(args.image_a, **tracing)
+    Q = contour_from_image(args.image_b, **tracing)
     p2p, cost = match_contours(P, Q, method=args.method, matcher=args.matcher)
     if args.out:
         buf = io.StringIO()

@@ -13,8 +13,11 @@ name           descriptor                               point cost   matcher
 ``curvature_map`` sampled curvature map                 squared L2   best match
 ``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP (16 starts
                ¼ shape context (distances in median     squared L2   per orientation), both
-               units) + 0.005 geodesic shape context                 orientations (mirror images)
+               units) + 0.005 geodesic shape context,                orientations (mirror images)
+               on 128 contour points smoothed by a
+               Gaussian of 0.25 % of the perimeter
 ``default_nomirror`` the same, direct orientation only
+``default_100pt`` the same on 100 unsmoothed points (the default until the tracing change of 2026-12-05)
 ``default_mean`` the same with distances in mean units (the papers')
 ``default_median`` the default of 2026-12-05 (½ shape context), pinned (a cross-validation candidate)
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
@@ -29,9 +32,11 @@ turn it off). Chosen by ``geoshape bench mirror2d`` (docs/RESULTS.md, "2D mirror
 matching"); kept against ``default_hf`` (+ height functions) and the same on 128 contour
 points, its cyclic DP given 16 starts per orientation instead of 4 (of 4, 6, 8, 16 and 128
 points), its histograms' distances measured in median instead of mean units and the shape
-context weighted ¼ instead of ½ (of ⅛, ¼, ½ and 1), by
-``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
-cross-validated choice": best worst-case bull's-eye over nine dev collections).
+context weighted ¼ instead of ½ (of ⅛, ¼, ½ and 1), and its contours traced on 128 points
+smoothed by 0.25 % of the perimeter (of 100 and 128 points, smoothing 0, 0.125 %, 0.25 % and
+0.5 %), by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
+cross-validated choice": best worst-case bull's-eye over nine dev collections). How a method's
+contours are traced is part of it: :func:`contour_tracing`.
 
 Per shape, everything is computed once into a *signature* (:func:`contour_signature`):
 an embedding ``X (N, K)`` in which the point cost is a squared Euclidean distance (histograms
@@ -150,10 +155,15 @@ _DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
 _DEFAULT = dict(
     parts=_DEFAULT_PARTS,
     metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-    mirror=True,
+    mirror=True, tracing=dict(n_points=128, smoothing=0.0025),
     summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
-    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too",
+    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, on 128 contour "
+    "points smoothed by a Gaussian of 0.0025 x the perimeter",
 )
+
+#: Contour tracing of the pinned defaults of 2026-12-01 to 12-05: 100 points, unsmoothed, the
+#: largest component alone.
+_TRACING_2026_11 = dict(n_points=100, smoothing=0.0, part_fraction=2.0)
 
 
 def _variant(summary: str, **changes) -> dict:
@@ -174,13 +184,17 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default_mean": _variant("the default with the histograms' distances in mean units (as the papers)",
                              parts=_in_units(_DEFAULT_PARTS, "mean")),
     "default_2026_11": _variant("the default of 2026-12-01 to 12-05 (4 cyclic-DP starts per orientation)",
-                                parts=_PAPER_PARTS, matcher_options=dict(skip_cost=0.3, n_starts=4)),
+                                parts=_PAPER_PARTS, matcher_options=dict(skip_cost=0.3, n_starts=4),
+                                tracing=_TRACING_2026_11),
     "default_median": _variant("median-unit histograms, 16 starts per orientation (the default of "
                                "2026-12-05)", parts=_MEDIAN_PARTS,
-                               matcher_options=dict(skip_cost=0.3, n_starts=16)),
+                               matcher_options=dict(skip_cost=0.3, n_starts=16), tracing=_TRACING_2026_11),
+    "default_100pt": _variant("the default's descriptors and matcher on 100 unsmoothed contour points "
+                              "(the default until the tracing change of 2026-12-05)",
+                              tracing=dict(n_points=100, smoothing=0.0)),
     "default_hf": _variant("default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
                            parts=_PAPER_PARTS + (("height_functions", 3.0, "raw", {}),),
-                           matcher_options=dict(skip_cost=0.3, n_starts=4)),
+                           matcher_options=dict(skip_cost=0.3, n_starts=4), tracing=_TRACING_2026_11),
     "height_functions": dict(
         parts=(("height_functions", 1.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.06, n_starts=4),
@@ -213,6 +227,26 @@ CONTOUR_METHODS: dict[str, dict] = {
 
 #: The method used when none is named (chosen by ``geoshape bench kimia99/tari1000``).
 DEFAULT_METHOD = "default"
+
+
+#: Contour points of a method whose entry names none.
+N_POINTS = 100
+
+
+def contour_tracing(method: str) -> dict:
+    """How ``method``'s contours are traced: keyword arguments ``n_points``, ``part_fraction``
+    and ``smoothing`` of :func:`geoshape.geometry.contour.extract_contour` (and
+    ``contour_from_image``) — the registry entry's ``tracing``, else ``N_POINTS`` points and
+    the tracer's defaults.
+
+    >>> contour_tracing("gsc")["n_points"], contour_tracing("default")["n_points"]
+    (100, 128)
+    """
+    from geoshape.geometry.contour import PART_FRACTION, SMOOTHING
+
+    check_choice("method", method, CONTOUR_METHODS)
+    return dict(dict(n_points=N_POINTS, part_fraction=PART_FRACTION, smoothing=SMOOTHING),
+                **CONTOUR_METHODS[method].get("tracing", {}))
 
 
 def method_spec(method: str, **overrides) -> dict:

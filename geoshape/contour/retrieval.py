@@ -41,6 +41,7 @@ from geoshape.contour.methods import (
     DEFAULT_METHOD,
     ContourSignature,
     contour_signature,
+    contour_tracing,
     method_spec,
     pair_costs,
     stack_signatures,
@@ -292,25 +293,32 @@ def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress
     return D
 
 
-def load_contours(paths, n_points: int = 100) -> list[np.ndarray]:
+def load_contours(paths, n_points: int = 100, part_fraction: float | None = None,
+                  smoothing: float | None = None) -> list[np.ndarray]:
     """Contours of silhouette image files, in order; the first bad file raises, naming it.
 
+    ``part_fraction`` and ``smoothing`` are the tracer's (defaults
+    :data:`~geoshape.geometry.contour.PART_FRACTION`, :data:`~geoshape.geometry.contour.SMOOTHING`;
+    see :func:`geoshape.geometry.contour.extract_contour`).
     Raises :class:`geoshape.errors.InvalidImageError` (missing, unreadable, empty image…).
     """
-    from geoshape.geometry.contour import contour_from_image
+    from geoshape.geometry.contour import PART_FRACTION, SMOOTHING, contour_from_image
 
-    return [contour_from_image(Path(p), n_points) for p in paths]
+    fraction = PART_FRACTION if part_fraction is None else part_fraction
+    sigma = SMOOTHING if smoothing is None else smoothing
+    return [contour_from_image(Path(p), n_points, part_fraction=fraction, smoothing=sigma) for p in paths]
 
 
-def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int = 100,
+def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int | None = None,
                         backend: str | None = None, n_jobs: int | None = None,
                         search: str = "auto", **options) -> dict:
     """Run 2D retrieval on a folder of silhouettes listed in ``labels.csv``.
 
     Every image is read before any matching starts; the first missing or unreadable file
     raises (:class:`geoshape.errors.DatasetError` / :class:`~geoshape.errors.InvalidImageError`)
-    naming it, so no partial result exists. ``search`` is passed to
-    :func:`shape_distance_matrix`.
+    naming it, so no partial result exists. Contours are traced as the method says
+    (:func:`~geoshape.contour.methods.contour_tracing`; ``n_points`` overrides its point
+    count). ``search`` is passed to :func:`shape_distance_matrix`.
 
     Returns
     -------
@@ -326,7 +334,10 @@ def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int =
 
     spec = method_spec(method, **options)
     items = read_labels(folder)
-    contours = load_contours([it.path for it in items], n_points)
+    tracing = contour_tracing(method)
+    if n_points is not None:
+        tracing["n_points"] = n_points
+    contours = load_contours([it.path for it in items], **tracing)
     labels = [it.label for it in items]
     t0 = time.perf_counter()
     sigs = contour_signatures(contours, spec=spec, backend=backend, n_jobs=n_jobs)

@@ -1,11 +1,13 @@
 """Geometry of one closed 2D contour ``P (N, 2)``: tracing it from a mask, arc length,
 resampling, curvature.
 
-Contours are traced as the outer boundary of the largest 8-connected foreground component
-(specks and holes are ignored), with sub-pixel accuracy by ``skimage.measure.find_contours``
-on a zero-padded mask (so shapes touching the border still close), resampled uniformly by
-arc length and oriented counter-clockwise in ``(x, y)`` coordinates with ``y`` pointing up
-(image row ``r`` becomes ``y = -r``).
+Contours are traced as the outer boundary of the object's 8-connected foreground components —
+parts cut off from the largest one (by a thin neck lost in segmentation, or a bite out of the
+boundary) joined to it by thin corridors, specks and holes ignored — with sub-pixel accuracy
+by ``skimage.measure.find_contours`` on a zero-padded mask (so shapes touching the border
+still close), resampled uniformly by arc length and oriented counter-clockwise in ``(x, y)``
+coordinates with ``y`` pointing up (image row ``r`` becomes ``y = -r``); optionally smoothed
+along its arc length first (:func:`smooth_contour`, a width in units of the perimeter).
 
 A contour is a closed polygon given by its points in order; the last point connects to the
 first and is not repeated. Counter-clockwise (positive signed area) is the convention, so
@@ -23,6 +25,10 @@ from geoshape.io.validate import check_contour
 
 __all__ = [
     "extract_contour",
+    "join_parts",
+    "smooth_contour",
+    "PART_FRACTION",
+    "SMOOTHING",
     "contour_from_image",
     "signed_area",
     "orient_ccw",
@@ -179,8 +185,98 @@ def mirror_contour(P) -> np.ndarray:
     return np.ascontiguousarray(np.roll(M[::-1], 1, axis=0))
 
 
-def extract_contour(mask, n_points: int = 100, *, name: str = "mask") -> np.ndarray:
-    """Outer boundary of the largest component of a mask, resampled by arc length.
+PART_FRACTION = 0.005
+"""A component is a part of the object (joined to it) when its area is at least this fraction of
+the largest component's; smaller ones are specks and dropped. See :func:`join_parts`."""
+
+_BRIDGE_HALF_WIDTH = 1
+"""Half width in pixels of the corridor that joins two parts: 3 pixels wide is the thinnest the
+sub-pixel tracer follows as one closed curve, and it adds no area worth describing."""
+
+
+def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.ndarray:
+    """One connected mask from the parts of a labelled mask, joined by thin corridors.
+
+    A thin part that a segmentation (or a bite out of the boundary) cut off belongs to the
+    shape; keeping only the largest component would throw it away. Components with area
+    ``≥ min_fraction ×`` the largest are joined greedily (Prim's order: each step bridges the
+    part whose boundary is nearest to the parts already joined, along that shortest gap) by a
+    straight corridor 3 pixels wide; smaller components are dropped as specks.
+
+    Parameters
+    ----------
+    labels : (h, w) int array
+        Connected-component labels, 0 = background (``skimage.measure.label``).
+    min_fraction : float
+        Area fraction of the largest component that makes a component a part; ``> 1`` keeps
+        the largest component alone.
+
+    Returns
+    -------
+    mask : (h, w) bool
+        The joined parts.
+
+    Notes
+    -----
+    O(h·w) for the boundaries plus O(K · B log B) for the nearest gaps, K parts and B
+    boundary pixels (a KD-tree per step).
+    """
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+    from skimage.draw import line
+
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    order = np.argsort(sizes, kind="stable")[::-1]
+    least = max(1.0, min_fraction * sizes.max())
+    parts = [int(order[0])] + [int(i) for i in order[1:] if sizes[i] >= least]
+    joined = labels == parts[0]
+    if len(parts) == 1:
+        return joined
+    edges = {i: np.argwhere((labels == i) & ~ndimage.binary_erosion(labels == i)) for i in parts}
+    inside, rest = edges[parts[0]], parts[1:]
+    corridor = np.zeros_like(joined)
+    while rest:
+        tree = cKDTree(inside)
+        gaps = [tree.query(edges[i]) for i in rest]
+        k = int(np.argmin([g[0].min() for g in gaps]))
+        dist, near = gaps[k]
+        a = edges[rest[k]][int(np.argmin(dist))]
+        b = inside[near[int(np.argmin(dist))]]
+        rr, cc = line(int(a[0]), int(a[1]), int(b[0]), int(b[1]))
+        corridor[rr, cc] = True
+        joined |= labels == rest[k]
+        inside = np.vstack([inside, edges[rest[k]]])
+        rest.pop(k)
+    w = 2 * _BRIDGE_HALF_WIDTH + 1
+    return joined | ndimage.binary_dilation(corridor, structure=np.ones((w, w), bool))
+
+
+SMOOTHING = 0.0
+"""Width of the Gaussian that smooths a traced boundary, as a fraction of its perimeter
+(0: none). See :func:`smooth_contour`."""
+
+
+def smooth_contour(P, sigma: float) -> np.ndarray:
+    """A closed polygon smoothed along its arc length by a Gaussian of width ``sigma`` × perimeter.
+
+    The polygon is resampled to about one point per unit of length (at least 400 points), filtered
+    cyclically per coordinate and returned on that dense sampling. Unit-free: the same ``sigma``
+    removes the same share of detail at every image size. O(M) for M ≈ perimeter points.
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    P = np.asarray(P, dtype=np.float64)
+    if sigma <= 0:
+        return P
+    m = max(400, int(np.ceil(perimeter(P))))
+    dense = resample_contour(P, m)
+    return gaussian_filter1d(dense, sigma * m, axis=0, mode="wrap")
+
+
+def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
+                    part_fraction: float = PART_FRACTION, smoothing: float = SMOOTHING) -> np.ndarray:
+    """Outer boundary of a mask's object (its parts joined), resampled by arc length.
 
     Parameters
     ----------
@@ -190,6 +286,13 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask") -> np.ndar
         Number of output points, uniformly spaced by arc length (≥ 8).
     name : str
         How the mask is named in errors (e.g. the image file).
+    part_fraction : float
+        Components with at least this share of the largest one's area are parts of the
+        object, joined by :func:`join_parts`; smaller ones are dropped (``> 1``: the largest
+        component alone, the tracing before 2026-12-05).
+    smoothing : float
+        Gaussian width along the boundary as a fraction of the perimeter
+        (:func:`smooth_contour`; 0: none).
 
     Returns
     -------
@@ -225,15 +328,11 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask") -> np.ndar
     if count == mask.size:
         raise InvalidImageError(f"{name}: every pixel is foreground (no background to separate)")
     labels = measure.label(mask, connectivity=2)
-    sizes = np.bincount(labels.ravel())
-    sizes[0] = 0
-    largest = labels == int(np.argmax(sizes))
-    if int(largest.sum()) < MIN_PIXELS:
-        raise InvalidImageError(
-            f"{name}: largest object has {int(largest.sum())} pixels (need ≥ {MIN_PIXELS})"
-        )
-    # Fill holes so only the outer boundary is traced.
-    filled = ndimage.binary_fill_holes(largest)
+    largest = int(np.bincount(labels.ravel())[1:].max())
+    if largest < MIN_PIXELS:
+        raise InvalidImageError(f"{name}: largest object has {largest} pixels (need ≥ {MIN_PIXELS})")
+    # Join the parts, then fill holes so only the outer boundary is traced.
+    filled = ndimage.binary_fill_holes(join_parts(labels, part_fraction))
     padded = np.pad(filled, 2).astype(np.float64)
     curves = measure.find_contours(padded, 0.5)
     closed = [c for c in curves if len(c) >= 4 and np.allclose(c[0], c[-1])]
@@ -247,14 +346,16 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask") -> np.ndar
     if area(outer) < 1.0:
         raise InvalidImageError(f"{name}: degenerate boundary (encloses no area)")
     xy = np.column_stack([outer[:, 1], -outer[:, 0]])
-    xy = orient_ccw(xy)
+    xy = orient_ccw(smooth_contour(xy, smoothing))
     P = resample_contour(xy, n_points)
     start = int(np.argmax(P[:, 1] - 1e-9 * P[:, 0]))
     return np.ascontiguousarray(np.roll(P, -start, axis=0))
 
 
-def contour_from_image(path: str | os.PathLike, n_points: int = 100) -> np.ndarray:
+def contour_from_image(path: str | os.PathLike, n_points: int = 100, *,
+                       part_fraction: float = PART_FRACTION, smoothing: float = SMOOTHING) -> np.ndarray:
     """``extract_contour(load_silhouette(path), n_points)`` with errors naming the file."""
     from geoshape.io.silhouette import load_silhouette
 
-    return extract_contour(load_silhouette(path), n_points, name=str(path))
+    return extract_contour(load_silhouette(path), n_points, name=str(path), part_fraction=part_fraction,
+                           smoothing=smoothing)
