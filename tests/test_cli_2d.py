@@ -29,6 +29,25 @@ def test_match2d_writes_pairs_and_plot(silhouettes, tmp_path, capsys):
     assert "cost" in capsys.readouterr().out
 
 
+def test_each_method_traces_contours_its_own_way(silhouettes, tmp_path):
+    """default matches 128 smoothed points, gsc 100 raw ones; --n-points overrides the count only."""
+    from geoshape.contour.methods import contour_tracing
+    from geoshape.contour.retrieval import retrieval_on_folder, shape_distance_matrix
+    from geoshape.geometry.contour import contour_from_image
+
+    a, b = str(silhouettes / "person_0.png"), str(silhouettes / "star_0.png")
+    cases = (("default", [], 128), ("gsc", [], 100), ("default", ["--n-points", "64"], 64))
+    for method, extra, rows in cases:
+        out = tmp_path / f"{method}{len(extra)}.csv"
+        assert main(["match2d", a, b, "--method", method, "--out", str(out), *extra]) == 0
+        assert len(out.read_text().splitlines()) == rows + 1
+    tracing = contour_tracing("default")
+    assert tracing["smoothing"] > 0 and contour_tracing("gsc")["smoothing"] == 0
+    by_folder = retrieval_on_folder(silhouettes, "default", backend="serial")
+    contours = [contour_from_image(silhouettes / name, **tracing) for name in by_folder["files"]]
+    assert np.allclose(by_folder["D"], shape_distance_matrix(contours, "default", backend="serial"))
+
+
 def test_match2d_bad_method_and_bad_image(silhouettes, tmp_path, capsys):
     assert main(["match2d", str(silhouettes / "person_0.png"), str(silhouettes / "star_0.png"),
                  "--method", "nope"]) == 2

@@ -218,8 +218,9 @@ def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.nd
 
     Notes
     -----
-    O(h·w) for the boundaries plus O(K · B log B) for the nearest gaps, K parts and B
-    boundary pixels (a KD-tree per step).
+    O(K·h·w) for the K parts' boundaries, then K − 1 steps that each query the boundaries
+    of the parts still apart against a KD-tree of the joined ones: O(K² · B log B) for B
+    boundary pixels. K is small: a part has at least ``min_fraction`` of the largest area.
     """
     from scipy import ndimage
     from scipy.spatial import cKDTree
