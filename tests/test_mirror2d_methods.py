@@ -24,7 +24,7 @@ def test_method_names_parse():
         "default", 64, {"part_fraction": 0.0, "smoothing": 0.005})
     for bad in ("default+starts", "default+skipX", "default+fast", "default+starts0", "default+skip-1",
                 "default@abc", "default@4", "default@128+starts8", "default+wcurvature_map=1",
-                "default+wgsc=-1", "default+wgsc", "default+parts-1", "default+smooth"):
+                "default+wgsc=-1", "default+wgsc", "default+parts-1", "default+smooth", "default+smooth0.2"):
         with pytest.raises(InvalidOptionError, match="bad (modifier|contour point count)"):
             mirror2d._method_points(bad)
 
@@ -48,7 +48,8 @@ def test_methods_mode_runs_and_caches(tmp_path, capsys):
     assert mirror2d.run(args) == 0
     out = capsys.readouterr().out
     assert "2D default method: cross-validated choice" in out and "**chosen**" in out
-    D = np.load(tmp_path / "work" / f"{mirror2d._cache_name('tiny', 'height_functions+skip0.1@64')}.npy")
+    stem = mirror2d.matrix_cache_name("tiny", "height_functions+skip0.1@64")
+    D = np.load(tmp_path / "work" / f"{stem}.npy")
     assert D.shape == (9, 9) and np.allclose(D, D.T)
     assert mirror2d.run(args) == 0  # from the cache: nothing recomputed
     assert "…" not in capsys.readouterr().out
@@ -58,11 +59,11 @@ def test_cache_is_keyed_by_what_a_method_computes(monkeypatch):
     """A registry entry that changes (``default`` taking more DP starts) gets a new cache file."""
     from geoshape.contour import methods
 
-    before = mirror2d._cache_name("set", "default")
-    assert before == mirror2d._cache_name("set", "default")
+    before = mirror2d.matrix_cache_name("set", "default")
+    assert before == mirror2d.matrix_cache_name("set", "default")
     entry = dict(methods.CONTOUR_METHODS["default"], matcher_options=dict(skip_cost=0.3, n_starts=3))
     monkeypatch.setitem(methods.CONTOUR_METHODS, "default", entry)
-    assert mirror2d._cache_name("set", "default") != before
+    assert mirror2d.matrix_cache_name("set", "default") != before
 
 
 def test_cache_is_keyed_by_the_contour_tracing(monkeypatch):
@@ -70,9 +71,9 @@ def test_cache_is_keyed_by_the_contour_tracing(monkeypatch):
     the default explicitly, behaves like any other spec change."""
     from geoshape.geometry import contour
 
-    plain = mirror2d._cache_name("set", "default")
+    plain = mirror2d.matrix_cache_name("set", "default")
     assert mirror2d._effective(f"default+parts{contour.PART_FRACTION}") == mirror2d._effective("default")
-    assert mirror2d._cache_name("set", "default+parts2") != plain
-    assert mirror2d._cache_name("set", "default+smooth0.01") != plain
+    assert mirror2d.matrix_cache_name("set", "default+parts2") != plain
+    assert mirror2d.matrix_cache_name("set", "default+smooth0.01") != plain
     monkeypatch.setattr(contour, "PART_FRACTION", 2.0)
-    assert mirror2d._cache_name("set", "default") != plain
+    assert mirror2d.matrix_cache_name("set", "default") != plain

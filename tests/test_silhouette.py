@@ -116,6 +116,21 @@ def test_smoothing_removes_boundary_noise_at_any_scale():
     assert perimeter(P) > 1.5 * circle and perimeter(S) < 1.05 * circle  # the bumps' length is gone
 
 
+def test_bad_tracing_settings_are_named():
+    from geoshape.errors import InvalidOptionError
+    from geoshape.geometry.contour import join_parts
+
+    mask = _disk_mask()
+    for bad in (-0.01, 0.5, float("nan"), float("inf")):
+        with pytest.raises(InvalidOptionError, match="smoothing must be in"):
+            extract_contour(mask, smoothing=bad)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(InvalidOptionError, match="part_fraction must be"):
+            extract_contour(mask, part_fraction=bad)
+    with pytest.raises(InvalidImageError, match="no object pixels"):
+        join_parts(np.zeros((5, 5), int))
+
+
 def test_border_touching_shape_closes():
     mask = np.zeros((40, 40), dtype=bool)
     mask[:, 10:30] = True  # touches top and bottom

@@ -10,7 +10,7 @@ settings measured are
 - ``off``: the direct orientation only, 4 starts (the default before 2026-12-01);
 - ``on-2``: both orientations, ``n_starts=2``: 4 starts in all (the DP work of ``off``);
 - ``on``: both orientations, ``n_starts=4``: 8 starts in all (the default of 2026-12-01);
-- ``on-16``: both orientations, ``n_starts=16``: 32 starts in all (the default since 2026-12-05,
+- ``on-16``: both orientations, ``n_starts=16``: 32 starts in all (the default's count since 2026-12-05,
   chosen with ``--methods``: "2D default method: cross-validated choice").
 
 Collections: ``kimia99``, ``tari1000``, ``generated`` (seeded silhouette generator,
@@ -93,7 +93,7 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 
     import numpy as np
 
-    from geoshape.contour.methods import ContourSignature
+    from geoshape.contour.methods import ContourSignature, contour_tracing
     from geoshape.contour.retrieval import contour_signatures, load_contours, shape_distance_matrix
     from geoshape.geometry.contour import mirror_contour
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
@@ -102,13 +102,14 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
     items = read_labels(folder)
     out, sigs, desc = {}, None, {}
     for setting in settings:
-        path = work / f"{name}_default-{_slug(setting)}.npy"
+        # keyed by what default computes (descriptors and tracing), like matrix_cache_name
+        path = work / f"{matrix_cache_name(name, 'default')}-{_slug(setting)}.npy"
         meta = path.with_suffix(".json")
         if path.is_file() and meta.is_file():
             out[setting] = (np.load(path), json.loads(meta.read_text()))
             continue
         if sigs is None:
-            contours = load_contours([it.path for it in items], 100)
+            contours = load_contours([it.path for it in items], **contour_tracing("default"))
             t0 = time.perf_counter()
             direct = contour_signatures(contours, "default", mirror=False, n_jobs=n_jobs)
             t1 = time.perf_counter()
@@ -151,6 +152,7 @@ def _method_points(method: str) -> tuple[str, int, dict]:
     """
     from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing
     from geoshape.errors import InvalidOptionError
+    from geoshape.geometry.contour import MAX_SMOOTHING
 
     rest, at, n = method.partition("@")
     base, *mods = rest.split("+")
@@ -160,7 +162,7 @@ def _method_points(method: str) -> tuple[str, int, dict]:
             if mod.startswith("skip") and float(mod[4:]) > 0:
                 overrides["skip_cost"] = float(mod[4:])
                 continue
-            if mod.startswith("smooth") and float(mod[6:]) >= 0:
+            if mod.startswith("smooth") and 0 <= float(mod[6:]) <= MAX_SMOOTHING:
                 overrides["smoothing"] = float(mod[6:])
                 continue
             if mod.startswith("parts") and float(mod[5:]) >= 0:
@@ -179,7 +181,7 @@ def _method_points(method: str) -> tuple[str, int, dict]:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
                                  "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
-                                 "+partsX or +smoothX with X >= 0)")
+                                 "+partsX with X >= 0, +smoothX with 0 <= X <= 0.05)")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides
@@ -205,7 +207,7 @@ def _effective(method: str) -> tuple[tuple, dict]:
     return tracing, {k: v for k, v in method_spec(base, **over).items() if k not in ("summary", "tracing")}
 
 
-def _cache_name(name: str, method: str) -> str:
+def matrix_cache_name(name: str, method: str) -> str:
     """Cache file stem of a collection's matrix for ``method``: its name and a digest of its
     effective spec, so a method whose registry entry changed (e.g. ``default``) is recomputed."""
     import hashlib
@@ -230,7 +232,7 @@ def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> d
     for method in methods:
         base, n_points, overrides = _method_points(method)
         tracing = _tracing(base, n_points, overrides)
-        path = work / f"{_cache_name(name, method)}.npy"
+        path = work / f"{matrix_cache_name(name, method)}.npy"
         meta = path.with_suffix(".json")
         if path.is_file() and meta.is_file():
             out[method] = (np.load(path), json.loads(meta.read_text()))
@@ -261,6 +263,7 @@ def run(args) -> int:
     from geoshape._options import check_choice
     from geoshape.bench.rerank import _folder
     from geoshape.bench.results import markdown_table, update_results_section, workers_note
+    from geoshape.bench.retrieval2d import points_note
     from geoshape.contour.methods import CONTOUR_METHODS
     from geoshape.io.datasets import read_labels
     from geoshape.metrics.retrieval import retrieval_metrics
@@ -348,7 +351,7 @@ def run(args) -> int:
     text = (
         "## 2D mirror-aware matching (default method)\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --settings "
-        f"{','.join(settings)}` ({time.strftime('%Y-%m-%d')}, 100 contour points, processes, "
+        f"{','.join(settings)}` ({time.strftime('%Y-%m-%d')}, {points_note(None, 'default')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds). "
         "`generated` is the seeded silhouette generator (6 classes × 12); `SET-KIND` is "
@@ -399,7 +402,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
-        "`METHOD@N`: the method on N contour points instead of its own (100 for all but default); "
+        "`METHOD@N`: the method on N contour points instead of its own (128 for default and its variants, "
+        "100 for the others); "
         "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "

@@ -29,7 +29,7 @@ def points_note(n_points: int | None, method: str | None = None) -> str:
     from geoshape.contour.methods import contour_tracing
 
     if n_points:
-        return f"{n_points} contour points"
+        return f"{n_points} contour points, each method's smoothing and part joining"
     if method:
         t = contour_tracing(method)
         return (f"{t['n_points']} contour points smoothed by {t['smoothing']:g} x the perimeter "

@@ -17,7 +17,7 @@ name           descriptor                               point cost   matcher
                on 128 contour points smoothed by a
                Gaussian of 0.25 % of the perimeter
 ``default_nomirror`` the same, direct orientation only
-``default_100pt`` the same on 100 unsmoothed points (the default until the tracing change of 2026-12-05)
+``default_100pt`` the same on 100 unsmoothed points, parts joined (the default before the tracing change)
 ``default_mean`` the same with distances in mean units (the papers')
 ``default_median`` the default of 2026-12-05 (½ shape context), pinned (a cross-validation candidate)
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
@@ -190,7 +190,8 @@ CONTOUR_METHODS: dict[str, dict] = {
                                "2026-12-05)", parts=_MEDIAN_PARTS,
                                matcher_options=dict(skip_cost=0.3, n_starts=16), tracing=_TRACING_2026_11),
     "default_100pt": _variant("the default's descriptors and matcher on 100 unsmoothed contour points "
-                              "(the default until the tracing change of 2026-12-05)",
+                              "(the default of 2026-12-05 before the tracing change, with the tracer's "
+                              "parts joined)",
                               tracing=dict(n_points=100, smoothing=0.0)),
     "default_hf": _variant("default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
                            parts=_PAPER_PARTS + (("height_functions", 3.0, "raw", {}),),

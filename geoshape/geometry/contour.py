@@ -226,8 +226,10 @@ def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.nd
     from scipy.spatial import cKDTree
     from skimage.draw import line
 
-    sizes = np.bincount(labels.ravel())
+    sizes = np.bincount(np.asarray(labels).ravel())
     sizes[0] = 0
+    if sizes.max() == 0:
+        raise InvalidImageError("join_parts: no object pixels (every label is background)")
     order = np.argsort(sizes, kind="stable")[::-1]
     least = max(1.0, min_fraction * sizes.max())
     parts = [int(order[0])] + [int(i) for i in order[1:] if sizes[i] >= least]
@@ -257,18 +259,27 @@ SMOOTHING = 0.0
 """Width of the Gaussian that smooths a traced boundary, as a fraction of its perimeter
 (0: none). See :func:`smooth_contour`."""
 
+MAX_SMOOTHING = 0.05
+"""The widest smoothing accepted: a Gaussian of 5 % of the perimeter already rounds a square
+into a disc-like blob (±2σ spans a fifth of the outline)."""
+
 
 def smooth_contour(P, sigma: float) -> np.ndarray:
     """A closed polygon smoothed along its arc length by a Gaussian of width ``sigma`` × perimeter.
 
     The polygon is resampled to about one point per unit of length (at least 400 points), filtered
-    cyclically per coordinate and returned on that dense sampling. Unit-free: the same ``sigma``
-    removes the same share of detail at every image size. O(M) for M ≈ perimeter points.
+    cyclically per coordinate and returned on that dense sampling; ``sigma = 0`` returns ``P``
+    itself. Unit-free: the same ``sigma`` removes the same share of detail at every image size.
+    ``sigma`` must lie in [0, ``MAX_SMOOTHING``] (wider, a Gaussian erases the shape itself).
+    O(M) for M ≈ perimeter points.
     """
     from scipy.ndimage import gaussian_filter1d
 
     P = np.asarray(P, dtype=np.float64)
-    if sigma <= 0:
+    if not 0.0 <= sigma <= MAX_SMOOTHING:  # also rejects NaN
+        raise InvalidOptionError(f"smoothing must be in [0, {MAX_SMOOTHING:g}] (a share of the perimeter), "
+                                 f"got {sigma!r}")
+    if sigma == 0:
         return P
     m = max(400, int(np.ceil(perimeter(P))))
     dense = resample_contour(P, m)
@@ -319,6 +330,8 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
 
     if n_points < 8:
         raise InvalidOptionError(f"n_points must be at least 8, got {n_points}")
+    if not (np.isfinite(part_fraction) and part_fraction >= 0):
+        raise InvalidOptionError(f"part_fraction must be a finite number >= 0, got {part_fraction!r}")
     mask = np.asarray(mask)
     if mask.ndim != 2 or mask.size == 0:
         raise InvalidImageError(f"{name}: mask must be a non-empty 2D array, got shape {mask.shape}")
@@ -348,6 +361,8 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
         raise InvalidImageError(f"{name}: degenerate boundary (encloses no area)")
     xy = np.column_stack([outer[:, 1], -outer[:, 0]])
     xy = orient_ccw(smooth_contour(xy, smoothing))
+    if abs(signed_area(xy)) < 1.0:
+        raise InvalidImageError(f"{name}: the smoothed boundary encloses no area (smoothing {smoothing:g})")
     P = resample_contour(xy, n_points)
     start = int(np.argmax(P[:, 1] - 1e-9 * P[:, 0]))
     return np.ascontiguousarray(np.roll(P, -start, axis=0))
