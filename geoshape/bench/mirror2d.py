@@ -187,14 +187,14 @@ def _method_points(method: str) -> tuple[str, int, dict]:
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides
 
 
-def _tracing(base: str, n_points: int, overrides: dict) -> tuple[int, float, float]:
-    """``(contour points, part fraction, smoothing)`` of method ``base`` on ``n_points`` points,
-    popping the tracer's overrides."""
+def _tracing(base: str, n_points: int, overrides: dict) -> dict:
+    """:func:`~geoshape.contour.methods.contour_tracing` of method ``base`` on ``n_points``
+    points with the tracer's overrides, popped from ``overrides``."""
     from geoshape.contour.methods import contour_tracing
 
-    own = contour_tracing(base)
-    return (n_points, overrides.pop("part_fraction", own["part_fraction"]),
-            overrides.pop("smoothing", own["smoothing"]))
+    tracing = contour_tracing(base, n_points)
+    tracing.update({k: overrides.pop(k) for k in ("part_fraction", "smoothing") if k in overrides})
+    return tracing
 
 
 def _effective(method: str) -> tuple[tuple, dict]:
@@ -203,7 +203,7 @@ def _effective(method: str) -> tuple[tuple, dict]:
     from geoshape.contour.methods import method_spec
 
     base, n, over = _method_points(method)
-    tracing = _tracing(base, n, over)
+    tracing = tuple(_tracing(base, n, over).values())
     return tracing, {k: v for k, v in method_spec(base, **over).items() if k not in ("summary", "tracing")}
 
 
@@ -237,11 +237,12 @@ def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> d
         if path.is_file() and meta.is_file():
             out[method] = (np.load(path), json.loads(meta.read_text()))
             continue
-        if tracing not in contours:
-            contours[tracing] = load_contours([it.path for it in read_labels(folder)], *tracing)
+        key = tuple(tracing.values())
+        if key not in contours:
+            contours[key] = load_contours([it.path for it in read_labels(folder)], **tracing)
         print(f"[{name}] {method} …", flush=True)
         t0 = time.perf_counter()
-        sigs = contour_signatures(contours[tracing], base, n_jobs=n_jobs, **overrides)
+        sigs = contour_signatures(contours[key], base, n_jobs=n_jobs, **overrides)
         t1 = time.perf_counter()
         D = shape_distance_matrix(None, base, signatures=sigs, n_jobs=n_jobs, **overrides)
         info = {"matrix_s": time.perf_counter() - t1, "load": os.getloadavg()[0],

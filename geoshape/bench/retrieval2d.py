@@ -26,16 +26,18 @@ def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
 
 def points_note(n_points: int | None, method: str | None = None) -> str:
     """How a benchmark's contours were traced, for its command line's note."""
-    from geoshape.contour.methods import contour_tracing
+    from geoshape.contour.methods import DEFAULT_METHOD, N_POINTS, contour_tracing
+
+    def traced(m: str) -> str:
+        t = contour_tracing(m)
+        return f"{t['n_points']} contour points smoothed by {t['smoothing']:g} x the perimeter"
 
     if n_points:
         return f"{n_points} contour points, each method's smoothing and part joining"
     if method:
-        t = contour_tracing(method)
-        return (f"{t['n_points']} contour points smoothed by {t['smoothing']:g} x the perimeter "
-                f"({method}'s tracing)")
-    return ("each method's contour tracing (default: 128 points smoothed by 0.0025 x the perimeter; "
-            "the others: 100)")
+        return f"{traced(method)} ({method}'s tracing)"
+    return (f"each method's contour tracing ({DEFAULT_METHOD}: {traced(DEFAULT_METHOD)}; "
+            f"most others: {N_POINTS})")
 
 
 def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:

@@ -43,9 +43,7 @@ def extended_collection(n_total: int, n_points: int | None, seed: int):
     from geoshape.io.datasets import dataset_dir, read_labels
     from geoshape.io.silhouette import load_silhouette
 
-    tracing = contour_tracing(DEFAULT_METHOD)
-    if n_points is not None:
-        tracing["n_points"] = n_points
+    tracing = contour_tracing(DEFAULT_METHOD, n_points)
     items = read_labels(dataset_dir("tari1000"))
     contours = [extract_contour(load_silhouette(it.path), name=str(it.path), **tracing) for it in items]
     labels = [it.label for it in items]

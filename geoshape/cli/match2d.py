@@ -47,9 +47,7 @@ def run(args) -> int:
     from geoshape.io.atomic import write_text_atomic
 
     method_spec(args.method, matcher=args.matcher)  # options checked before any work
-    tracing = contour_tracing(args.method)
-    if args.n_points is not None:
-        tracing["n_points"] = args.n_points
+    tracing = contour_tracing(args.method, args.n_points)
     P = contour_from_image(args.image_a, **tracing)
     Q = contour_from_image(args.image_b, **tracing)
     p2p, cost = match_contours(P, Q, method=args.method, matcher=args.matcher)

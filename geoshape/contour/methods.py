@@ -234,20 +234,25 @@ DEFAULT_METHOD = "default"
 N_POINTS = 100
 
 
-def contour_tracing(method: str) -> dict:
+def contour_tracing(method: str, n_points: int | None = None) -> dict:
     """How ``method``'s contours are traced: keyword arguments ``n_points``, ``part_fraction``
     and ``smoothing`` of :func:`geoshape.geometry.contour.extract_contour` (and
     ``contour_from_image``) — the registry entry's ``tracing``, else ``N_POINTS`` points and
-    the tracer's defaults.
+    the tracer's defaults; ``n_points`` (when given) overrides the point count only.
 
     >>> contour_tracing("gsc")["n_points"], contour_tracing("default")["n_points"]
     (100, 128)
+    >>> contour_tracing("default", n_points=64)["smoothing"] == contour_tracing("default")["smoothing"]
+    True
     """
     from geoshape.geometry.contour import PART_FRACTION, SMOOTHING
 
     check_choice("method", method, CONTOUR_METHODS)
-    return dict(dict(n_points=N_POINTS, part_fraction=PART_FRACTION, smoothing=SMOOTHING),
-                **CONTOUR_METHODS[method].get("tracing", {}))
+    tracing = dict(dict(n_points=N_POINTS, part_fraction=PART_FRACTION, smoothing=SMOOTHING),
+                   **CONTOUR_METHODS[method].get("tracing", {}))
+    if n_points is not None:
+        tracing["n_points"] = n_points
+    return tracing
 
 
 def method_spec(method: str, **overrides) -> dict:

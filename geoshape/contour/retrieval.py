@@ -293,20 +293,17 @@ def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress
     return D
 
 
-def load_contours(paths, n_points: int = 100, part_fraction: float | None = None,
-                  smoothing: float | None = None) -> list[np.ndarray]:
+def load_contours(paths, n_points: int = 100, **tracing) -> list[np.ndarray]:
     """Contours of silhouette image files, in order; the first bad file raises, naming it.
 
-    ``part_fraction`` and ``smoothing`` are the tracer's (defaults
-    :data:`~geoshape.geometry.contour.PART_FRACTION`, :data:`~geoshape.geometry.contour.SMOOTHING`;
-    see :func:`geoshape.geometry.contour.extract_contour`).
+    ``tracing``: the tracer's ``part_fraction`` and ``smoothing``
+    (:func:`geoshape.geometry.contour.extract_contour`; a method's are
+    :func:`~geoshape.contour.methods.contour_tracing`).
     Raises :class:`geoshape.errors.InvalidImageError` (missing, unreadable, empty image…).
     """
-    from geoshape.geometry.contour import PART_FRACTION, SMOOTHING, contour_from_image
+    from geoshape.geometry.contour import contour_from_image
 
-    fraction = PART_FRACTION if part_fraction is None else part_fraction
-    sigma = SMOOTHING if smoothing is None else smoothing
-    return [contour_from_image(Path(p), n_points, part_fraction=fraction, smoothing=sigma) for p in paths]
+    return [contour_from_image(Path(p), n_points, **tracing) for p in paths]
 
 
 def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int | None = None,
@@ -334,10 +331,7 @@ def retrieval_on_folder(folder, method: str = DEFAULT_METHOD, *, n_points: int |
 
     spec = method_spec(method, **options)
     items = read_labels(folder)
-    tracing = contour_tracing(method)
-    if n_points is not None:
-        tracing["n_points"] = n_points
-    contours = load_contours([it.path for it in items], **tracing)
+    contours = load_contours([it.path for it in items], **contour_tracing(method, n_points))
     labels = [it.label for it in items]
     t0 = time.perf_counter()
     sigs = contour_signatures(contours, spec=spec, backend=backend, n_jobs=n_jobs)

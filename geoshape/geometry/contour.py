@@ -354,14 +354,14 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
         raise InvalidImageError(f"{name}: the object boundary does not close")
 
     def area(c):
-        return 0.5 * abs(np.dot(c[:, 0], np.roll(c[:, 1], -1)) - np.dot(c[:, 1], np.roll(c[:, 0], -1)))
+        return abs(signed_area(c))
 
     outer = max(closed, key=area)[:-1] - 2.0
     if area(outer) < 1.0:
         raise InvalidImageError(f"{name}: degenerate boundary (encloses no area)")
     xy = np.column_stack([outer[:, 1], -outer[:, 0]])
     xy = orient_ccw(smooth_contour(xy, smoothing))
-    if abs(signed_area(xy)) < 1.0:
+    if area(xy) < 1.0:
         raise InvalidImageError(f"{name}: the smoothed boundary encloses no area (smoothing {smoothing:g})")
     P = resample_contour(xy, n_points)
     start = int(np.argmax(P[:, 1] - 1e-9 * P[:, 0]))
