@@ -77,3 +77,18 @@ def test_cache_is_keyed_by_the_contour_tracing(monkeypatch):
     assert mirror2d.matrix_cache_name("set", "default+smooth0.01") != plain
     monkeypatch.setattr(contour, "PART_FRACTION", 2.0)
     assert mirror2d.matrix_cache_name("set", "default") != plain
+
+
+def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkeypatch):
+    """Rows measured under an older default stay reproducible: ``default_100pt`` and
+    ``default_128pt`` name their part fraction, ``default`` follows the tracer's."""
+    from geoshape.contour.methods import contour_tracing
+    from geoshape.geometry import contour
+
+    pinned = {m: mirror2d.matrix_cache_name("set", m) for m in ("default_100pt", "default_128pt")}
+    plain = mirror2d.matrix_cache_name("set", "default")
+    assert contour_tracing("default_128pt")["part_fraction"] == 0.005
+    assert contour_tracing("default")["part_fraction"] == contour.PART_FRACTION
+    monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
+    assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned
+    assert mirror2d.matrix_cache_name("set", "default") != plain

@@ -151,14 +151,18 @@ _DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
 #: twice the matrix time of default_2026_11 (docs/RESULTS.md, "2D default method:
 #: cross-validated choice": 8 starts tie 16 within 0.05 points at a lower mean mAP; shape
 #: context 0.125 ties 0.25 at a lower mean mAP; skip cost 0.3 and gsc weight 0.005 lose when
-#: halved or doubled). n_starts = N is the exact cyclic DP.
+#: halved or doubled). n_starts = N is the exact cyclic DP. Its contours: 128 points smoothed
+#: by 0.0025 x the perimeter, parts of at least 1 % of the largest component joined (the
+#: tracer's PART_FRACTION), each chosen by the same rule (160 points is better on the worst
+#: case but costs 2.4x the reference's matrix time, beyond the rule's budget).
 _DEFAULT = dict(
     parts=_DEFAULT_PARTS,
     metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
     mirror=True, tracing=dict(n_points=128, smoothing=0.0025),
     summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
     "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, on 128 contour "
-    "points smoothed by a Gaussian of 0.0025 x the perimeter",
+    "points smoothed by a Gaussian of 0.0025 x the perimeter, parts of >= 1 % of the largest "
+    "joined",
 )
 
 #: Contour tracing of the pinned defaults of 2026-12-01 to 12-05: 100 points, unsmoothed, the
@@ -192,7 +196,10 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default_100pt": _variant("the default's descriptors and matcher on 100 unsmoothed contour points "
                               "(the default of 2026-12-05 before the tracing change, with the tracer's "
                               "parts joined)",
-                              tracing=dict(n_points=100, smoothing=0.0)),
+                              tracing=dict(n_points=100, smoothing=0.0, part_fraction=0.005)),
+    "default_128pt": _variant("the default of 2026-12-05 (evening): 128 points smoothed by 0.0025 x "
+                              "the perimeter, parts of >= 0.5 % of the largest joined",
+                              tracing=dict(n_points=128, smoothing=0.0025, part_fraction=0.005)),
     "default_hf": _variant("default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
                            parts=_PAPER_PARTS + (("height_functions", 3.0, "raw", {}),),
                            matcher_options=dict(skip_cost=0.3, n_starts=4), tracing=_TRACING_2026_11),

@@ -185,9 +185,12 @@ def mirror_contour(P) -> np.ndarray:
     return np.ascontiguousarray(np.roll(M[::-1], 1, axis=0))
 
 
-PART_FRACTION = 0.005
+PART_FRACTION = 0.01
 """A component is a part of the object (joined to it) when its area is at least this fraction of
-the largest component's; smaller ones are specks and dropped. See :func:`join_parts`."""
+the largest component's; smaller ones are specks and dropped. See :func:`join_parts`. Chosen by
+the cross-validation rule of ``geoshape bench mirror2d`` over nine dev collections (docs/2d.md):
+its worst case (the noisy Tari-1000 copy) is 95.21 % against 95.06 % at 0.5 % and 95.09 % at
+2 %; at 2 % the notched Kimia-99 copy loses the legs its bites cut off (−2.39 points)."""
 
 _BRIDGE_HALF_WIDTH = 1
 """Half width in pixels of the corridor that joins two parts: 3 pixels wide is the thinnest the
