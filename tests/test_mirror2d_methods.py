@@ -88,7 +88,11 @@ def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkey
     pinned = {m: mirror2d.matrix_cache_name("set", m) for m in ("default_100pt", "default_128pt")}
     plain = mirror2d.matrix_cache_name("set", "default")
     assert contour_tracing("default_128pt")["part_fraction"] == 0.005
-    assert contour_tracing("default")["part_fraction"] == contour.PART_FRACTION
+    assert contour_tracing("default_100pt")["part_fraction"] == 0.005
+    # default_128pt is the default but for the part fraction
+    tracing, spec = mirror2d._effective("default_128pt")
+    assert spec == mirror2d._effective("default")[1]
+    assert tracing[0] == contour_tracing("default")["n_points"]
     monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
     assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned
     assert mirror2d.matrix_cache_name("set", "default") != plain

@@ -15,9 +15,11 @@ name           descriptor                               point cost   matcher
                ¼ shape context (distances in median     squared L2   per orientation), both
                units) + 0.005 geodesic shape context,                orientations (mirror images)
                on 128 contour points smoothed by a
-               Gaussian of 0.25 % of the perimeter
+               Gaussian of 0.25 % of the perimeter,
+               parts of ≥ 1 % of the largest joined
 ``default_nomirror`` the same, direct orientation only
-``default_100pt`` the same on 100 unsmoothed points, parts joined (the default before the tracing change)
+``default_100pt`` the same on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned, the default before)
+``default_128pt`` the same with parts of ≥ 0.5 % joined (pinned: the default of the evening of 2026-12-05)
 ``default_mean`` the same with distances in mean units (the papers')
 ``default_median`` the default of 2026-12-05 (½ shape context), pinned (a cross-validation candidate)
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
@@ -33,8 +35,9 @@ matching"); kept against ``default_hf`` (+ height functions) and the same on 128
 points, its cyclic DP given 16 starts per orientation instead of 4 (of 4, 6, 8, 16 and 128
 points), its histograms' distances measured in median instead of mean units and the shape
 context weighted ¼ instead of ½ (of ⅛, ¼, ½ and 1), and its contours traced on 128 points
-smoothed by 0.25 % of the perimeter (of 100 and 128 points, smoothing 0, 0.125 %, 0.25 % and
-0.5 %), by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
+smoothed by 0.25 % of the perimeter (of 64, 100, 128 and 160 points, smoothing 0, 0.125 %,
+0.25 % and 0.5 %) with every part of at least 1 % of the largest joined (of 0, 0.25, 0.5, 1
+and 2 %), by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
 cross-validated choice": best worst-case bull's-eye over nine dev collections). How a method's
 contours are traced is part of it: :func:`contour_tracing`.
 
@@ -170,6 +173,15 @@ _DEFAULT = dict(
 _TRACING_2026_11 = dict(n_points=100, smoothing=0.0, part_fraction=2.0)
 
 
+def _pinned_2026_12_05(summary: str, **tracing) -> dict:
+    """The default of 2026-12-05 — descriptors, matcher and mirror images written out, parts of
+    at least 0.5 % of the largest joined — with its contour tracing's other settings: rows
+    measured under it stay reproducible when the default moves."""
+    return dict(parts=_reweighted(_MEDIAN_PARTS, shape_context=0.25), metric="sqeuclidean", matcher="dp",
+                matcher_options=dict(skip_cost=0.3, n_starts=16), mirror=True,
+                tracing=dict(tracing, part_fraction=0.005), summary=summary)
+
+
 def _variant(summary: str, **changes) -> dict:
     """The default with ``changes`` (and its own ``matcher_options`` dict)."""
     out = dict(_DEFAULT, summary=summary, **changes)
@@ -193,13 +205,13 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default_median": _variant("median-unit histograms, 16 starts per orientation (the default of "
                                "2026-12-05)", parts=_MEDIAN_PARTS,
                                matcher_options=dict(skip_cost=0.3, n_starts=16), tracing=_TRACING_2026_11),
-    "default_100pt": _variant("the default's descriptors and matcher on 100 unsmoothed contour points "
-                              "(the default of 2026-12-05 before the tracing change, with the tracer's "
-                              "parts joined)",
-                              tracing=dict(n_points=100, smoothing=0.0, part_fraction=0.005)),
-    "default_128pt": _variant("the default of 2026-12-05 (evening): 128 points smoothed by 0.0025 x "
-                              "the perimeter, parts of >= 0.5 % of the largest joined",
-                              tracing=dict(n_points=128, smoothing=0.0025, part_fraction=0.005)),
+    "default_100pt": _pinned_2026_12_05("the default's descriptors and matcher on 100 unsmoothed contour "
+                                        "points (the default of 2026-12-05 before the tracing change), "
+                                        "parts of >= 0.5 % of the largest joined",
+                                        n_points=100, smoothing=0.0),
+    "default_128pt": _pinned_2026_12_05("the default of 2026-12-05 (evening): 128 points smoothed by "
+                                        "0.0025 x the perimeter, parts of >= 0.5 % of the largest joined",
+                                        n_points=128, smoothing=0.0025),
     "default_hf": _variant("default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
                            parts=_PAPER_PARTS + (("height_functions", 3.0, "raw", {}),),
                            matcher_options=dict(skip_cost=0.3, n_starts=4), tracing=_TRACING_2026_11),
