@@ -30,13 +30,13 @@ def test_match2d_writes_pairs_and_plot(silhouettes, tmp_path, capsys):
 
 
 def test_each_method_traces_contours_its_own_way(silhouettes, tmp_path):
-    """default matches 128 smoothed points, gsc 100 raw ones; --n-points overrides the count only."""
+    """default matches 144 smoothed points, gsc 100 raw ones; --n-points overrides the count only."""
     from geoshape.contour.methods import contour_tracing
     from geoshape.contour.retrieval import retrieval_on_folder, shape_distance_matrix
     from geoshape.geometry.contour import contour_from_image
 
     a, b = str(silhouettes / "person_0.png"), str(silhouettes / "star_0.png")
-    cases = (("default", [], 128), ("gsc", [], 100), ("default", ["--n-points", "64"], 64))
+    cases = (("default", [], 144), ("gsc", [], 100), ("default", ["--n-points", "64"], 64))
     for method, extra, rows in cases:
         out = tmp_path / f"{method}{len(extra)}.csv"
         assert main(["match2d", a, b, "--method", method, "--out", str(out), *extra]) == 0

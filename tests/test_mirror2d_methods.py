@@ -13,10 +13,10 @@ from geoshape.errors import InvalidOptionError
 
 
 def test_method_names_parse():
-    assert mirror2d._method_points("default") == ("default", 128, {})  # the default traces 128 points
+    assert mirror2d._method_points("default") == ("default", 144, {})  # the default traces 144 points
     assert mirror2d._method_points("default_100pt") == ("default_100pt", 100, {})
     assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
-    assert mirror2d._method_points("default+skip0.4") == ("default", 128, {"skip_cost": 0.4})
+    assert mirror2d._method_points("default+skip0.4") == ("default", 144, {"skip_cost": 0.4})
     assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
     weighted = mirror2d._method_points("default_median+wgsc=0.01")[2]["parts"]
     assert [p[1] for p in weighted] == [1.0, 0.5, 0.01]  # only the named part's weight moves
@@ -89,10 +89,10 @@ def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkey
     plain = mirror2d.matrix_cache_name("set", "default")
     assert contour_tracing("default_128pt")["part_fraction"] == 0.005
     assert contour_tracing("default_100pt")["part_fraction"] == 0.005
-    # default_128pt is the default but for the part fraction
+    # default_128pt is the default's matcher and descriptors on its own tracing
     tracing, spec = mirror2d._effective("default_128pt")
     assert spec == mirror2d._effective("default")[1]
-    assert tracing[0] == contour_tracing("default")["n_points"]
+    assert tracing == (128, 0.005, 0.0025)
     monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
     assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned
     assert mirror2d.matrix_cache_name("set", "default") != plain

@@ -14,12 +14,12 @@ name           descriptor                               point cost   matcher
 ``default``    inner-distance shape context 5×12 +     Hellinger +  cyclic DP (16 starts
                ¼ shape context (distances in median     squared L2   per orientation), both
                units) + 0.005 geodesic shape context,                orientations (mirror images)
-               on 128 contour points smoothed by a
+               on 144 contour points smoothed by a
                Gaussian of 0.25 % of the perimeter,
                parts of ≥ 1 % of the largest joined
 ``default_nomirror`` the same, direct orientation only
 ``default_100pt`` the same on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned, the default before)
-``default_128pt`` the same with parts of ≥ 0.5 % joined (pinned: the default of the evening of 2026-12-05)
+``default_128pt`` the same on 128 points, parts of ≥ 0.5 % joined (pinned: the default of 2026-12-05, evening)
 ``default_mean`` the same with distances in mean units (the papers')
 ``default_median`` the default of 2026-12-05 (½ shape context), pinned (a cross-validation candidate)
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
@@ -34,8 +34,8 @@ turn it off). Chosen by ``geoshape bench mirror2d`` (docs/RESULTS.md, "2D mirror
 matching"); kept against ``default_hf`` (+ height functions) and the same on 128 contour
 points, its cyclic DP given 16 starts per orientation instead of 4 (of 4, 6, 8, 16 and 128
 points), its histograms' distances measured in median instead of mean units and the shape
-context weighted ¼ instead of ½ (of ⅛, ¼, ½ and 1), and its contours traced on 128 points
-smoothed by 0.25 % of the perimeter (of 64, 100, 128 and 160 points, smoothing 0, 0.125 %,
+context weighted ¼ instead of ½ (of ⅛, ¼, ½ and 1), and its contours traced on 144 points
+smoothed by 0.25 % of the perimeter (of 64, 100, 128, 144 and 160 points, smoothing 0, 0.125 %,
 0.25 % and 0.5 %) with every part of at least 1 % of the largest joined (of 0, 0.25, 0.5, 1
 and 2 %), by ``geoshape bench mirror2d --methods …`` (docs/RESULTS.md, "2D default method:
 cross-validated choice": best worst-case bull's-eye over nine dev collections). How a method's
@@ -154,16 +154,16 @@ _DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
 #: twice the matrix time of default_2026_11 (docs/RESULTS.md, "2D default method:
 #: cross-validated choice": 8 starts tie 16 within 0.05 points at a lower mean mAP; shape
 #: context 0.125 ties 0.25 at a lower mean mAP; skip cost 0.3 and gsc weight 0.005 lose when
-#: halved or doubled). n_starts = N is the exact cyclic DP. Its contours: 128 points smoothed
+#: halved or doubled). n_starts = N is the exact cyclic DP. Its contours: 144 points smoothed
 #: by 0.0025 x the perimeter, parts of at least 1 % of the largest component joined (the
-#: tracer's PART_FRACTION), each chosen by the same rule (160 points is better on the worst
-#: case but costs 2.4x the reference's matrix time, beyond the rule's budget).
+#: tracer's PART_FRACTION), each chosen by the same rule (144 points at 1.99x the reference's
+#: matrix time; 160 points is better on the worst case but costs 2.4x, beyond the budget).
 _DEFAULT = dict(
     parts=_DEFAULT_PARTS,
     metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.3, n_starts=16),
-    mirror=True, tracing=dict(n_points=128, smoothing=0.0025),
+    mirror=True, tracing=dict(n_points=144, smoothing=0.0025),
     summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
-    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, on 128 contour "
+    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, on 144 contour "
     "points smoothed by a Gaussian of 0.0025 x the perimeter, parts of >= 1 % of the largest "
     "joined",
 )
@@ -260,7 +260,7 @@ def contour_tracing(method: str, n_points: int | None = None) -> dict:
     the tracer's defaults; ``n_points`` (when given) overrides the point count only.
 
     >>> contour_tracing("gsc")["n_points"], contour_tracing("default")["n_points"]
-    (100, 128)
+    (100, 144)
     >>> contour_tracing("default", n_points=64)["smoothing"] == contour_tracing("default")["smoothing"]
     True
     """
