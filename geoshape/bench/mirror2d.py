@@ -134,7 +134,7 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
 
 def _method_points(method: str) -> tuple[str, int, dict]:
     """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
-    points (the method's own unless given: 128 for default, 100 for most); ``+skipX``
+    points (the method's own unless given: 144 for default, 100 for most); ``+skipX``
     overrides the DP skip cost (X > 0), ``+startsK`` the cyclic DP's starts per orientation (K
     ≥ 1), ``+wNAME=X`` the weight of the method's descriptor part ``NAME`` (X ≥ 0),
     ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
@@ -146,7 +146,7 @@ def _method_points(method: str) -> tuple[str, int, dict]:
     >>> _method_points("default_hf"), _method_points("default_100pt+skip0.4@128")
     (('default_hf', 100, {}), ('default_100pt', 128, {'skip_cost': 0.4}))
     >>> _method_points("default+starts8+skip0.2"), _method_points("default+parts0@100")
-    (('default', 128, {'n_starts': 8, 'skip_cost': 0.2}), ('default', 100, {'part_fraction': 0.0}))
+    (('default', 144, {'n_starts': 8, 'skip_cost': 0.2}), ('default', 100, {'part_fraction': 0.0}))
     >>> [p[:2] for p in _method_points("default_2026_11+wshape_context=1")[2]["parts"]]
     [('idsc', 1.0), ('shape_context', 1.0), ('gsc', 0.005)]
     """
@@ -383,7 +383,7 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     import time
 
     from geoshape.bench.results import workers_note
-    from geoshape.contour.methods import CONTOUR_METHODS
+    from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing
 
     def spec(m):
         return CONTOUR_METHODS[_method_points(m)[0]]
@@ -403,8 +403,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
-        "`METHOD@N`: the method on N contour points instead of its own (128 for default and its variants, "
-        "100 for the others); "
+        "`METHOD@N`: the method on N contour points instead of its own ("
+        f"{contour_tracing('default')['n_points']} for default, 128 for default_128pt, 100 for most others); "
         "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "
