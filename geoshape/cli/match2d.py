@@ -23,7 +23,7 @@ def register(subparsers) -> None:
     p.add_argument("--matcher", default=None,
                    help="override the method's matcher: best, proximity, hungarian, dp")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=None,
-                   help="contour points (default: the method's, 128 for default, 100 for most)")
+                   help="contour points (default: the method's, 144 for default, 100 for most)")
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours side by side, upright, matched points "
                    "coloured alike (unmatched grey)")

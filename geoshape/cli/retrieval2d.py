@@ -30,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--json", help="output JSON with the metrics and timing")
     p.add_argument("--plot", help="output picture of the matrix")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=None,
-                   help="contour points (default: the method's, 128 for default, 100 for most)")
+                   help="contour points (default: the method's, 144 for default, 100 for most)")
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
     p.add_argument("--n-jobs", type=WORKERS, default=None, help="workers (default: all cores)")
     p.set_defaults(handler=run)
