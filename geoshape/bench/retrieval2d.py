@@ -13,9 +13,9 @@ ALL_METHODS = ("default", "gsc", "shape_context", "idsc", "curvature_map")
 def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
     parser.add_argument("--methods", default=",".join(default_methods),
                         help=f"comma-separated methods (default: {','.join(default_methods)})")
-    parser.add_argument("--n-points", type=int, default=None,
-                        help="contour points of every method (default: each method's, 128 for "
-                        "default, 100 for most)")
+    from geoshape.cli._common import N_POINTS_HELP
+
+    parser.add_argument("--n-points", type=int, default=None, help=N_POINTS_HELP)
     parser.add_argument("--backend", default=None, help="processes (default), serial, dask")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--matrix-dir", default=None,

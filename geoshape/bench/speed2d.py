@@ -21,7 +21,7 @@ TARGET_SECONDS = 240.0
 def add_arguments(parser) -> None:
     parser.add_argument("--sizes", default="1000,1400", help="collection sizes (default 1000,1400)")
     parser.add_argument("--n-points", type=int, default=None,
-                        help="contour points (default: the default method's, 128)")
+                        help="contour points (default: the default method's own tracing)")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the perturbed copies (default 0)")
     parser.add_argument("--reference", default=None,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from geoshape.cli._common import CONTOUR_POINTS, RangeType
+from geoshape.cli._common import CONTOUR_POINTS, N_POINTS_HELP, RangeType
 from geoshape.io.outputs import declare_outputs
 
 METHOD_HELP = "matching method: default, default_nomirror, gsc, shape_context, idsc, curvature_map"
@@ -23,7 +23,7 @@ def register(subparsers) -> None:
     p.add_argument("--matcher", default=None,
                    help="override the method's matcher: best, proximity, hungarian, dp")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=None,
-                   help="contour points (default: the method's, 144 for default, 100 for most)")
+                   help=N_POINTS_HELP)
     p.add_argument("--out", help="CSV of matched pairs: a_index,b_index,a_x,a_y,b_x,b_y")
     p.add_argument("--plot", help="picture of both contours side by side, upright, matched points "
                    "coloured alike (unmatched grey)")

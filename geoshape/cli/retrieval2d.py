@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from geoshape.cli._common import CONTOUR_POINTS, WORKERS
+from geoshape.cli._common import CONTOUR_POINTS, N_POINTS_HELP, WORKERS
 from geoshape.io.outputs import declare_outputs
 
 
@@ -30,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--json", help="output JSON with the metrics and timing")
     p.add_argument("--plot", help="output picture of the matrix")
     p.add_argument("--n-points", type=CONTOUR_POINTS, default=None,
-                   help="contour points (default: the method's, 144 for default, 100 for most)")
+                   help=N_POINTS_HELP)
     p.add_argument("--backend", default=None, help="processes (default), serial, dask")
     p.add_argument("--n-jobs", type=WORKERS, default=None, help="workers (default: all cores)")
     p.set_defaults(handler=run)
