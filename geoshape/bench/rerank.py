@@ -2,7 +2,8 @@
 parameters cross-validated, each halved and doubled.
 
 Reads the all-pairs matrices ``DIR/<set>_<method>.npy`` (as ``geoshape bench kimia99|tari1000
---matrix-dir DIR`` saves them) and computes the missing ones: ``kimia99`` and ``tari1000`` from the
+--matrix-dir DIR`` saves them, each with a ``.spec`` file naming what it was computed with) and
+computes the missing or stale ones: ``kimia99`` and ``tari1000`` from the
 benchmark data, ``generated`` from the seeded silhouette generator (6 classes × 12), and
 ``<set>-<kind>`` as the ``geoshape gen perturb2d`` copy of a set (seed 0). For
 every (k, iterations) on a grid it scores the re-ranked matrix; the setting chosen is the one
@@ -58,17 +59,20 @@ def _folder(name: str, spec: str, work):
     return dataset_dir(name)
 
 
-def _matrix(name: str, folder, path, method: str):
-    """The saved matrix of a set, computed (all pairs, local processes) and saved if missing."""
-    import numpy as np
-
+def _matrix(name: str, folder, work, method: str):
+    """The matrix of a set saved in ``work`` for ``method`` as it is now, else computed (all
+    pairs, local processes) and saved with its spec (:func:`~geoshape.bench.retrieval2d.save_matrix`):
+    a matrix saved before ``method``'s registry entry changed is not reused."""
+    from geoshape.bench.retrieval2d import load_matrix, save_matrix
     from geoshape.contour.retrieval import retrieval_on_folder
-    from geoshape.io.atomic import save_npy_atomic
 
-    if not path.is_file():
-        print(f"[{name}] all pairs with {method} …")
-        save_npy_atomic(path, retrieval_on_folder(folder, method)["D"])
-    return np.load(path)
+    D = load_matrix(work, name, method)
+    if D is None:
+        stale = (work / f"{name}_{method}.npy").is_file()
+        print(f"[{name}] all pairs with {method}{' (the saved matrix is stale)' if stale else ''} …")
+        D = retrieval_on_folder(folder, method)["D"]
+        save_matrix(work, name, method, D)
+    return D
 
 
 def run(args) -> int:
@@ -89,7 +93,7 @@ def run(args) -> int:
         name, _, spec = item.strip().partition("=")
         folder = _folder(name, spec, work)
         labels = [it.label for it in read_labels(folder)]
-        sets[name] = (_matrix(name, folder, work / f"{name}_{args.method}.npy", args.method), labels)
+        sets[name] = (_matrix(name, folder, work, args.method), labels)
 
     def score(D, labels):
         m = retrieval_metrics(D, labels)

@@ -19,9 +19,51 @@ def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
     parser.add_argument("--backend", default=None, help="processes (default), serial, dask")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--matrix-dir", default=None,
-                        help="also save each method's matrix as <dir>/<set>_<method>.npy")
+                        help="also save each method's matrix as <dir>/<set>_<method>.npy (and what it was "
+                             "computed with as <set>_<method>.spec)")
     parser.add_argument("--no-write", action="store_true",
                         help="print the table but do not update docs/RESULTS.md")
+
+
+def matrix_spec(dataset: str, method: str, n_points: int | None = None) -> str:
+    """What a saved ``<set>_<method>.npy`` was computed with: the set, the method and a digest of
+    its registry entry and contour tracing (:func:`geoshape.bench.mirror2d.matrix_cache_name`).
+    :func:`save_matrix` writes it beside the matrix, so a reader tells a matrix of the method
+    as it is now from one saved before its entry (e.g. ``default``) changed."""
+    from geoshape.bench.mirror2d import matrix_cache_name
+
+    return matrix_cache_name(dataset, method if n_points is None else f"{method}@{n_points}")
+
+
+def save_matrix(folder, dataset: str, method: str, D, *, n_points: int | None = None):
+    """Save ``D`` as ``folder/<set>_<method>.npy`` and its :func:`matrix_spec` as ``….spec``
+    (each written to a temporary file, then moved; the spec last, so an interrupted save reads
+    as stale). Returns the matrix's path."""
+    from pathlib import Path
+
+    from geoshape.io.atomic import save_npy_atomic, write_text_atomic
+
+    path = Path(folder) / f"{dataset}_{method}.npy"
+    save_npy_atomic(path, D)
+    write_text_atomic(path.with_suffix(".spec"), matrix_spec(dataset, method, n_points) + "\n")
+    return path
+
+
+def load_matrix(folder, dataset: str, method: str):
+    """The matrix :func:`save_matrix` saved for ``method`` on ``dataset`` with its own tracing,
+    or None when there is none or it was computed under another spec (a changed registry
+    entry, another point count, or no spec file: saved by an older version)."""
+    from pathlib import Path
+
+    import numpy as np
+
+    path = Path(folder) / f"{dataset}_{method}.npy"
+    spec = path.with_suffix(".spec")
+    if not (path.is_file() and spec.is_file()):
+        return None
+    if spec.read_text().strip() != matrix_spec(dataset, method):
+        return None
+    return np.load(path)
 
 
 def points_note(n_points: int | None, method: str | None = None) -> str:
@@ -47,7 +89,6 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
     from geoshape.bench.results import update_results_section
     from geoshape.contour.methods import CONTOUR_METHODS
     from geoshape.contour.retrieval import retrieval_on_folder
-    from geoshape.io.atomic import save_npy_atomic
     from geoshape.io.datasets import dataset_dir
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -68,7 +109,7 @@ def run_benchmark(dataset: str, args, *, intro: str, primary: str) -> int:
         print(f"  top-k {counts} total {met['top_k_total']}, bull's-eye {met['bulls_eye']:.2f} %, "
               f"mAP {met['map']:.4f}, {res['seconds']:.1f} s", flush=True)
         if args.matrix_dir:
-            save_npy_atomic(Path(args.matrix_dir) / f"{dataset}_{m}.npy", res["D"])
+            save_matrix(Path(args.matrix_dir), dataset, m, res["D"], n_points=args.n_points)
         # Write after every method, so a long run leaves its finished rows behind.
         md = _section(dataset, args, methods, rows, intro, primary)
         if not args.no_write:
