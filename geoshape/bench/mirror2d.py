@@ -384,6 +384,7 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
 
     from geoshape.bench.results import workers_note
     from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing
+    from geoshape.geometry.contour import N_POINTS
 
     def spec(m):
         return CONTOUR_METHODS[_method_points(m)[0]]
@@ -404,7 +405,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
         "`METHOD@N`: the method on N contour points instead of its own ("
-        f"{contour_tracing('default')['n_points']} for default, 128 for default_128pt, 100 for most others); "
+        f"{contour_tracing('default')['n_points']} for default, 128 for default_128pt, "
+        f"{N_POINTS} for most others); "
         "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "

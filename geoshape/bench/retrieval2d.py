@@ -68,7 +68,8 @@ def load_matrix(folder, dataset: str, method: str):
 
 def points_note(n_points: int | None, method: str | None = None) -> str:
     """How a benchmark's contours were traced, for its command line's note."""
-    from geoshape.contour.methods import DEFAULT_METHOD, N_POINTS, contour_tracing
+    from geoshape.contour.methods import DEFAULT_METHOD, contour_tracing
+    from geoshape.geometry.contour import N_POINTS
 
     def traced(m: str) -> str:
         t = contour_tracing(m)

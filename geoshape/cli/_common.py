@@ -99,7 +99,7 @@ CONTOUR_POINTS = RangeType(int, 8, 4000)
 #: --n-points help, one home: each method traces its own count (``contour_tracing(method)``),
 #: so the text names no number that a new default would leave stale.
 N_POINTS_HELP = ("contour points (default: each method's own, geoshape.contour.methods."
-                 "contour_tracing; 100 for most)")
+                 "contour_tracing)")
 POSITIVE_INT = RangeType(int, 1)
 NONNEGATIVE_INT = RangeType(int, 0)
 POSITIVE_FLOAT = RangeType(float, 1e-12)

@@ -249,22 +249,19 @@ CONTOUR_METHODS: dict[str, dict] = {
 DEFAULT_METHOD = "default"
 
 
-#: Contour points of a method whose entry names none.
-N_POINTS = 100
-
-
 def contour_tracing(method: str, n_points: int | None = None) -> dict:
     """How ``method``'s contours are traced: keyword arguments ``n_points``, ``part_fraction``
     and ``smoothing`` of :func:`geoshape.geometry.contour.extract_contour` (and
-    ``contour_from_image``) — the registry entry's ``tracing``, else ``N_POINTS`` points and
-    the tracer's defaults; ``n_points`` (when given) overrides the point count only.
+    ``contour_from_image``) — the registry entry's ``tracing``, else the tracer's defaults
+    (:data:`geoshape.geometry.contour.N_POINTS` points, …); ``n_points`` (when given) overrides
+    the point count only.
 
     >>> contour_tracing("gsc")["n_points"], contour_tracing("default")["n_points"]
     (100, 144)
     >>> contour_tracing("default", n_points=64)["smoothing"] == contour_tracing("default")["smoothing"]
     True
     """
-    from geoshape.geometry.contour import PART_FRACTION, SMOOTHING
+    from geoshape.geometry.contour import N_POINTS, PART_FRACTION, SMOOTHING
 
     check_choice("method", method, CONTOUR_METHODS)
     tracing = dict(dict(n_points=N_POINTS, part_fraction=PART_FRACTION, smoothing=SMOOTHING),

@@ -197,7 +197,8 @@ _BRIDGE_HALF_WIDTH = 1
 sub-pixel tracer follows as one closed curve, and it adds no area worth describing."""
 
 
-def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.ndarray:
+def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION, *,
+               sizes: np.ndarray | None = None) -> np.ndarray:
     """One connected mask from the parts of a labelled mask, joined by thin corridors.
 
     A thin part that a segmentation (or a bite out of the boundary) cut off belongs to the
@@ -213,6 +214,8 @@ def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.nd
     min_fraction : float
         Area fraction of the largest component that makes a component a part; ``> 1`` keeps
         the largest component alone.
+    sizes : (labels.max() + 1,) int array, optional
+        Pixels per label (``np.bincount(labels.ravel())``), when the caller has counted them.
 
     Returns
     -------
@@ -229,7 +232,7 @@ def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.nd
     from scipy.spatial import cKDTree
     from skimage.draw import line
 
-    sizes = np.bincount(np.asarray(labels).ravel())
+    sizes = np.bincount(np.asarray(labels).ravel()) if sizes is None else np.array(sizes)
     sizes[0] = 0
     if sizes.max() == 0:
         raise InvalidImageError("join_parts: no object pixels (every label is background)")
@@ -257,6 +260,10 @@ def join_parts(labels: np.ndarray, min_fraction: float = PART_FRACTION) -> np.nd
     w = 2 * _BRIDGE_HALF_WIDTH + 1
     return joined | ndimage.binary_dilation(corridor, structure=np.ones((w, w), bool))
 
+
+N_POINTS = 100
+"""Points a traced boundary is resampled to unless the caller (or a method's tracing,
+:func:`geoshape.contour.methods.contour_tracing`) names another count."""
 
 SMOOTHING = 0.0
 """Width of the Gaussian that smooths a traced boundary, as a fraction of its perimeter
@@ -289,7 +296,7 @@ def smooth_contour(P, sigma: float) -> np.ndarray:
     return gaussian_filter1d(dense, sigma * m, axis=0, mode="wrap")
 
 
-def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
+def extract_contour(mask, n_points: int = N_POINTS, *, name: str = "mask",
                     part_fraction: float = PART_FRACTION, smoothing: float = SMOOTHING) -> np.ndarray:
     """Outer boundary of a mask's object (its parts joined), resampled by arc length.
 
@@ -345,11 +352,12 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
     if count == mask.size:
         raise InvalidImageError(f"{name}: every pixel is foreground (no background to separate)")
     labels = measure.label(mask, connectivity=2)
-    largest = int(np.bincount(labels.ravel())[1:].max())
+    sizes = np.bincount(labels.ravel())
+    largest = int(sizes[1:].max())
     if largest < MIN_PIXELS:
         raise InvalidImageError(f"{name}: largest object has {largest} pixels (need ≥ {MIN_PIXELS})")
     # Join the parts, then fill holes so only the outer boundary is traced.
-    filled = ndimage.binary_fill_holes(join_parts(labels, part_fraction))
+    filled = ndimage.binary_fill_holes(join_parts(labels, part_fraction, sizes=sizes))
     padded = np.pad(filled, 2).astype(np.float64)
     curves = measure.find_contours(padded, 0.5)
     closed = [c for c in curves if len(c) >= 4 and np.allclose(c[0], c[-1])]
@@ -371,7 +379,7 @@ def extract_contour(mask, n_points: int = 100, *, name: str = "mask",
     return np.ascontiguousarray(np.roll(P, -start, axis=0))
 
 
-def contour_from_image(path: str | os.PathLike, n_points: int = 100, *,
+def contour_from_image(path: str | os.PathLike, n_points: int = N_POINTS, *,
                        part_fraction: float = PART_FRACTION, smoothing: float = SMOOTHING) -> np.ndarray:
     """``extract_contour(load_silhouette(path), n_points)`` with errors naming the file."""
     from geoshape.io.silhouette import load_silhouette
