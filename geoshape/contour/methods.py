@@ -154,7 +154,8 @@ _DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
 #: twice the matrix time of default_2026_11 (docs/RESULTS.md, "2D default method:
 #: cross-validated choice": 8 starts tie 16 within 0.05 points at a lower mean mAP; shape
 #: context 0.125 ties 0.25 at a lower mean mAP; skip cost 0.3 and gsc weight 0.005 lose when
-#: halved or doubled). n_starts = N is the exact cyclic DP. Its contours: 144 points smoothed
+#: halved or doubled; all of these and the smoothing re-checked so on 144 points, docs/2d.md).
+#: n_starts = N is the exact cyclic DP. Its contours: 144 points smoothed
 #: by 0.0025 x the perimeter, parts of at least 1 % of the largest component joined (the
 #: tracer's PART_FRACTION), each chosen by the same rule (144 points at 1.99x the reference's
 #: matrix time; 160 points is better on the worst case but costs 2.4x, beyond the budget).
