@@ -155,8 +155,9 @@ def run(args) -> int:
     text = (
         "## 2D re-ranking (locally constrained diffusion)\n\n"
         f"Command: `geoshape bench rerank --matrix-dir DIR --sets {args.sets}` on the `{args.method}` "
-        "all-pairs matrices (computed into DIR when missing; `generated` is the seeded silhouette "
-        "generator, 6 classes × 12; `kimia99-KIND` is `geoshape gen perturb2d kimia99 --kind KIND "
+        "all-pairs matrices (computed into DIR when missing or stale, i.e. saved under another "
+        "spec of the method; `generated` is the seeded silhouette generator, 6 classes × 12; "
+        "`kimia99-KIND` is `geoshape gen perturb2d kimia99 --kind KIND "
         "--seed 0`). The grid is k ∈ "
         f"{list(K_GRID)}, iterations ∈ {list(T_GRID)}; the best setting maximises the smallest mAP "
         "gain over the collections. Re-ranking 1400 × 1400 with the default: "
