@@ -16,6 +16,7 @@ import geoshape.correspondence.pipeline as pipeline
 from geoshape.correspondence.pipeline import Candidate, GeoshapeOptions
 from geoshape.correspondence.reorder import Alignment
 from geoshape.errors import InvalidOptionError
+from geoshape.geometry.knn import KNNIndex, nearest
 
 
 def _octahedron():
@@ -97,7 +98,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 29
+    assert len(GeoshapeOptions.names()) == 30
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
@@ -163,6 +164,45 @@ def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
     kept = dataclasses.replace(refined(0.025, 0.1, False), orientation_share=0.9)
     assert pipeline.decide([half_mirrored, kept]) is kept
     assert pipeline.decision_score(kept) == pytest.approx(0.0025 / 0.9)
+
+
+def test_the_landmark_twins_are_decided_by_local_rigidity():
+    """The repaired and the polished map come out of one landmark solve that fits geodesic
+    distances: between the two, the more rigid wins whatever their scores; elsewhere
+    rigidity plays no part."""
+    def refined(source, score, rigidity, unwanted=False):
+        return Candidate(source=source, refined_map=np.zeros(2, dtype=np.int64), refined_energy=score,
+                         refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted,
+                         distortion=1.0, rigidity=rigidity)
+
+    half_turn, right = refined("repaired", 0.01, 0.30), refined("polished", 0.02, 0.20)
+    spectral = refined("spectral", 0.03, None)
+    assert pipeline.decide([spectral, half_turn, right]) is right
+    more_rigid_repair = dataclasses.replace(half_turn, rigidity=0.1)
+    assert pipeline.decide([spectral, right, more_rigid_repair]) is more_rigid_repair
+    # not measured (rigidity_patch = 0), or the twin is mirrored: the score decides
+    assert pipeline.decide([half_turn, dataclasses.replace(right, rigidity=None)]) is half_turn
+    assert pipeline.decide([half_turn, dataclasses.replace(right, unwanted=True)]) is half_turn
+    # a spectral map that wins on the score is not second-guessed by the twins' rigidity
+    best_spectral = refined("spectral", 0.001, None)
+    assert pipeline.decide([best_spectral, half_turn, right]) is best_spectral
+
+
+def test_local_rigidity_sees_a_front_back_half_turn_through_stretching():
+    """A tube with one foot pointing forward, stretched along its axis on mesh 2: the direct
+    map is more rigid, patch by patch, than the half-turn about the axis (front to back,
+    left to right), which has to fold the foot onto the heel."""
+    rng = np.random.default_rng(1)
+    t, h = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(0, 4, 4000)
+    tube = np.c_[np.cos(t), h, np.sin(t)]
+    foot = np.c_[rng.uniform(-0.3, 0.3, 600), rng.uniform(0, 0.4, 600), rng.uniform(1, 2, 600)]
+    X1 = np.vstack([tube, foot])
+    X2 = X1 * [1.0, 1.5, 1.0]  # non-isometric: the tube and the foot 1.5 × taller
+    half_turn = nearest(X2, X2 * [-1.0, 1.0, -1.0])[1]
+    patches = KNNIndex(X1).query(X1[::10], k=12)[1]
+    direct = pipeline.local_rigidity(X1, X2, patches)
+    turned = pipeline.local_rigidity(X1, X2[half_turn], patches)
+    assert direct < 0.5 * turned
 
 
 def _grid_context(large: bool):

@@ -163,6 +163,11 @@ class GeoshapeOptions:
     """Landmarks pinning the orientation repair: the first farthest samples of mesh 1 (a body's ends)."""
     polish_wanted: bool = field(default=True, metadata=_BOOL)
     """When the repaired map would win, also re-solve the best other wanted map the same way."""
+    # Why 1 %: a patch then spans about a limb's width on a body, where a front↔back half-turn
+    # shows (a foot mapped onto a heel); on the candidate pools of the five 5k-vertex dev sets
+    # 0.5 %, 1 % and 2 % ranked all 22 right/wrong twins alike (docs/correspondence3d.md).
+    rigidity_patch: float = field(default=0.01, metadata=_float(0.0))
+    """Share of refinement samples per patch of the rigidity deciding repaired vs polished (0: off)."""
 
     def __post_init__(self):
         check_choice("geoshape option reorder", self.reorder, REORDER_METHODS)
@@ -252,6 +257,9 @@ class Candidate:
     distortion: float | None = None
     """Geodesic distortion of the refined map: its mean normalised geodesic distortion to the
     power ``distortion_power`` (:func:`geodesic_distortion`; default 2, the stress)."""
+    rigidity: float | None = None
+    """:func:`local_rigidity` of the refined map (0: a rotation and uniform scaling on every
+    patch), measured for the repaired and polished maps only (:func:`measure_rigidity`)."""
 
     @property
     def cost(self) -> float | None:
@@ -897,7 +905,7 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
                                                               orientation_repair=False))
     completed = None
     if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
-        completed = dataclasses.replace(best, symmetry_completed=True, distortion=None)
+        completed = dataclasses.replace(best, symmetry_completed=True, distortion=None, rigidity=None)
         _refine_into(ctx, completed, mirror.p2p_12[best.refined_map], options, on_refinement_rows=True)
     timings["symmetry"] = time.perf_counter() - t
     return completed
@@ -1009,6 +1017,69 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
 
 
+def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float:
+    """How far a map is from a rotation and a uniform scaling, locally: the mean over
+    ``patches`` (rows of indices into ``X1 (s, 3)``, e.g. a point and its nearest neighbours)
+    of the residual after each patch and its image (the same rows of ``X2 (s, 3)``) are
+    centred, scaled to unit RMS radius and the image aligned by the best proper rotation
+    (Kabsch): the mean squared distance left, in [0, 4]. 0 for a map that is a rotation and
+    a uniform scaling on every patch; a reflection or a fold costs. Scaling each patch on its
+    own makes it blind to a smooth change of local scale (a limb stretched or thickened), which
+    the geodesic stress counts. O(P k) and P 3 × 3 SVDs for P patches of k points.
+
+    >>> X = np.random.default_rng(0).normal(size=(50, 3))
+    >>> patches = np.arange(50).reshape(10, 5)
+    >>> R = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> round(local_rigidity(X, 2 * X @ R.T + 1, patches), 9)
+    0.0
+    >>> local_rigidity(X, X * [1, 1, -1], patches) > 0.1  # a mirror image is not a rotation
+    True
+    """
+    def centred_unit(Y):
+        Y = Y - Y.mean(axis=1, keepdims=True)
+        rms = np.sqrt((Y**2).sum(axis=(1, 2), keepdims=True) / Y.shape[1])
+        return Y / np.maximum(rms, 1e-300)
+
+    P, Q = centred_unit(X1[patches]), centred_unit(X2[patches])
+    U, S, Vt = np.linalg.svd(np.einsum("pki,pkj->pij", P, Q))
+    S[:, -1] *= np.sign(np.linalg.det(U @ Vt))  # the best rotation, not a reflection
+    k = patches.shape[1]
+    residual = ((P**2).sum(axis=(1, 2)) + (Q**2).sum(axis=(1, 2)) - 2 * S.sum(axis=1)) / k
+    return float(np.mean(residual))
+
+
+#: the sources of maps re-solved from landmark distance functions (:func:`landmark_resolve`)
+LANDMARK_SOURCES = ("repaired", "polished")
+
+
+def rigidity_patches(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray:
+    """``(s, k)`` patches of :func:`local_rigidity`: each refinement sample of mesh 1 and its
+    ``k − 1`` nearest (k = ``rigidity_patch`` × s, at least 4), as positions in ``ctx.s1``;
+    one KD-tree query, O(s k log s), cached per mesh."""
+    from geoshape.geometry.knn import KNNIndex
+
+    X = np.ascontiguousarray(ctx.m1.V[ctx.s1], dtype=np.float64)
+    k = min(len(X), max(4, int(round(options.rigidity_patch * len(X)))))
+    return ctx.m1.cached(("rigidity_patches", ctx.s1.tobytes(), k),
+                         lambda: np.asarray(KNNIndex(X).query(X, k=k)[1], dtype=np.int64))
+
+
+def measure_rigidity(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
+                     timings: dict) -> None:
+    """Fill ``rigidity`` (:func:`local_rigidity` on :func:`rigidity_patches`) of every
+    candidate that lacks it; nothing when ``rigidity_patch`` is 0."""
+    todo = [c for c in candidates if c.rigidity is None]
+    if not todo or options.rigidity_patch <= 0:
+        return
+    t = time.perf_counter()
+    patches = rigidity_patches(ctx, options)
+    at = slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+    X1 = ctx.m1.V[ctx.s1]
+    for c in todo:
+        c.rigidity = local_rigidity(X1, ctx.m2.V[c.refined_map[at]], patches)
+    timings["rigidity"] = timings.get("rigidity", 0.0) + time.perf_counter() - t
+
+
 #: Exponents of (distortion, energy, orientation share) in :func:`decision_score`: equal
 #: weights in log space. ``geoshape bench correspondence --suite generalization
 #: --decision-weights`` measures each one halved, doubled and left out on the dev sets.
@@ -1038,9 +1109,22 @@ def decide(refined: list[Candidate], *,
     """Stage 5: the candidate of lowest :func:`decision_score` (with ``exponents``) among those
     of the wanted orientation (the sign of the orientation score, no threshold), or among all
     when none is. A map must not win by being smooth and mirrored. O(len(refined)).
+
+    When that candidate is the repaired or the polished map and the other one is also of the
+    wanted orientation, the more rigid of the two (lower :func:`local_rigidity`, when both were
+    measured) is chosen. Both come out of the same landmark solve, which fits geodesic
+    distances to the landmarks, so the stress is what the solve optimised rather than an
+    independent judge between them: on stretched pairs it preferred the half-turn of the two
+    as often as the right map. Local rigidity is not fitted by the solve and sees a foot
+    mapped onto a heel whatever the stretching (docs/correspondence3d.md).
     """
     wanted = [c for c in refined if not c.unwanted] or refined
-    return min(wanted, key=lambda c: decision_score(c, exponents))
+    best = min(wanted, key=lambda c: decision_score(c, exponents))
+    if best.source not in LANDMARK_SOURCES or best.rigidity is None:
+        return best
+    twins = [c for c in wanted if c.source in LANDMARK_SOURCES and c.source != best.source
+             and c.rigidity is not None and c.rigidity < best.rigidity]
+    return min(twins, key=lambda c: c.rigidity) if twins else best
 
 
 def full_resolution(ctx: PairContext, chosen: Candidate, options: GeoshapeOptions,
@@ -1157,6 +1241,8 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         polished = polish_against_repair(ctx, refined, options, timings)
         measure_distortion(ctx, polished, options, timings)
         refined += polished
+        if polished:  # the twins decide() compares by local rigidity
+            measure_rigidity(ctx, [c for c in refined if c.source in LANDMARK_SOURCES], options, timings)
         completed = complete_symmetry(ctx, refined, options, timings)
         if completed is not None:
             measure_distortion(ctx, [completed], options, timings)
