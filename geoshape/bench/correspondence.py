@@ -331,18 +331,19 @@ def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: in
         log(f"== {pool.name}: final map {pool.final_error:.4f} direct, "
             f"{pool.final_error_sym:.4f} symmetry-aware")
         log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
-            "wanted | decision score")
+            "wanted | decision score | rigidity")
         for i, c in enumerate(pool.candidates):
             row = {"pair": pool.name, "source": c.source, "error": pool.errors[i],
                    "error_sym": pool.errors_sym[i], "distortion": c.distortion,
                    "energy": c.refined_energy, "orientation": c.refined_orientation,
                    "wanted": not c.unwanted, "decision_score": decision_score(c),
-                   "chosen": i == pool.chosen_index}
+                   "rigidity": c.rigidity, "chosen": i == pool.chosen_index}
             rows.append(row)
             mark = "*" if row["chosen"] else " "
             log(f"  {mark} | {c.source} | {row['error']:.4f} | {row['error_sym']:.4f} | {c.distortion:.4f} | "
                 f"{c.refined_energy:.4f} | {c.refined_orientation:+.3f} | "
-                f"{'yes' if row['wanted'] else 'no'} | {row['decision_score']:.6f}")
+                f"{'yes' if row['wanted'] else 'no'} | {row['decision_score']:.6f} | "
+                f"{'—' if c.rigidity is None else f'{c.rigidity:.4f}'}")
     return rows
 
 

@@ -46,7 +46,7 @@ SENSITIVITY_FIELDS = (
     "n_keep", "n_refine", "distinct_spacing", "icp_iterations", "n_controls", "lb_k", "screen_k",
     "screen_samples", "zoomout_samples", "descriptor_k", "distortion_samples", "distortion_power",
     "repair_landmarks", "final_k", "final_vertices_per_eigenpair", "final_step", "soft_temperature",
-    "soft_rings",
+    "soft_rings", "rigidity_patch",
 )
 """Numeric defaults varied by ``--sensitivity``. Left out: ``k`` (the exhaustive order search
 grows as k!·2^k, ×2 is intractable), ``zoomout_start`` / ``zoomout_step`` (the schedule between
