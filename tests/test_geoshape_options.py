@@ -180,6 +180,10 @@ def test_the_landmark_twins_are_decided_by_local_rigidity():
     assert pipeline.decide([spectral, half_turn, right]) is right
     more_rigid_repair = dataclasses.replace(half_turn, rigidity=0.1)
     assert pipeline.decide([spectral, right, more_rigid_repair]) is more_rigid_repair
+    # the polished map winning on the score gives way to a more rigid repaired map too
+    repaired_right = refined("repaired", 0.03, 0.15)
+    polished_turn = refined("polished", 0.01, 0.25)
+    assert pipeline.decide([polished_turn, repaired_right]) is repaired_right
     # not measured (rigidity_patch = 0), or the twin is mirrored: the score decides
     assert pipeline.decide([half_turn, dataclasses.replace(right, rigidity=None)]) is half_turn
     assert pipeline.decide([half_turn, dataclasses.replace(right, unwanted=True)]) is half_turn
@@ -189,20 +193,48 @@ def test_the_landmark_twins_are_decided_by_local_rigidity():
 
 
 def test_local_rigidity_sees_a_front_back_half_turn_through_stretching():
-    """A tube with one foot pointing forward, stretched along its axis on mesh 2: the direct
-    map is more rigid, patch by patch, than the half-turn about the axis (front to back,
-    left to right), which has to fold the foot onto the heel."""
+    """A tube with one foot pointing forward; mesh 2 is another, denser sampling of it,
+    stretched 1.5 × along the axis. Both maps are read off by nearest points: the direct one
+    and the half-turn about the axis (front to back, left to right), which has to fold the
+    foot onto the heel. Without the foot (a control) the two are equally rigid."""
     rng = np.random.default_rng(1)
-    t, h = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(0, 4, 4000)
-    tube = np.c_[np.cos(t), h, np.sin(t)]
-    foot = np.c_[rng.uniform(-0.3, 0.3, 600), rng.uniform(0, 0.4, 600), rng.uniform(1, 2, 600)]
-    X1 = np.vstack([tube, foot])
-    X2 = X1 * [1.0, 1.5, 1.0]  # non-isometric: the tube and the foot 1.5 × taller
-    half_turn = nearest(X2, X2 * [-1.0, 1.0, -1.0])[1]
-    patches = KNNIndex(X1).query(X1[::10], k=12)[1]
-    direct = pipeline.local_rigidity(X1, X2, patches)
-    turned = pipeline.local_rigidity(X1, X2[half_turn], patches)
-    assert direct < 0.5 * turned
+
+    def body(n, foot):
+        t, h = rng.uniform(0, 2 * np.pi, n), rng.uniform(0, 4, n)
+        points = np.c_[np.cos(t), h, np.sin(t)]
+        if foot:
+            m = n // 6
+            points = np.vstack([points, np.c_[rng.uniform(-0.3, 0.3, m), rng.uniform(0, 0.4, m),
+                                              rng.uniform(1, 2, m)]])
+        return points
+
+    ratios = {}
+    for foot in (True, False):
+        X1, X2 = body(4000, foot), body(16000, foot) * [1.0, 1.5, 1.0]
+        stretched = X1 * [1.0, 1.5, 1.0]
+        direct = nearest(X2, stretched)[1]
+        half_turn = nearest(X2, stretched * [-1.0, 1.0, -1.0])[1]
+        patches = KNNIndex(X1).query(X1[::10], k=12)[1]
+        ratios[foot] = (pipeline.local_rigidity(X1, X2[half_turn], patches)
+                        / pipeline.local_rigidity(X1, X2[direct], patches))
+    assert ratios[True] > 1.3 and abs(ratios[False] - 1) < 0.1
+
+
+def test_measure_rigidity_fills_only_when_asked_and_sees_a_fold():
+    """On a flat grid the identity is perfectly rigid; folding half the grid onto the other
+    half is not; ``rigidity_patch = 0`` measures nothing."""
+    grid = _grid_context(False)
+    ctx = SimpleNamespace(m1=grid.m2, m2=grid.m2, s1=np.arange(441), large=False)
+    x = np.arange(441) % 21
+    folded_ids = np.arange(441) - x + np.where(x > 10, 20 - x, x)  # column x > 10 onto 20 − x
+    identity = Candidate(source="repaired", refined_map=np.arange(441))
+    folded = Candidate(source="polished", refined_map=folded_ids)
+    pipeline.measure_rigidity(ctx, [identity, folded], GeoshapeOptions(rigidity_patch=0), {})
+    assert identity.rigidity is None and folded.rigidity is None
+    timings = {}
+    pipeline.measure_rigidity(ctx, [identity, folded], GeoshapeOptions(), timings)
+    assert identity.rigidity == pytest.approx(0, abs=1e-9) and folded.rigidity > 0.01
+    assert "rigidity" in timings and identity.summary()["rigidity"] == identity.rigidity
 
 
 def _grid_context(large: bool):

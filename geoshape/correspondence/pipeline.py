@@ -286,6 +286,8 @@ class Candidate:
             out.update(refined_energy=self.refined_energy, refined_orientation=self.refined_orientation)
         if self.distortion is not None:
             out["distortion"] = self.distortion
+        if self.rigidity is not None:
+            out["rigidity"] = self.rigidity
         return out
 
 
@@ -1022,10 +1024,12 @@ def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float
     ``patches`` (rows of indices into ``X1 (s, 3)``, e.g. a point and its nearest neighbours)
     of the residual after each patch and its image (the same rows of ``X2 (s, 3)``) are
     centred, scaled to unit RMS radius and the image aligned by the best proper rotation
-    (Kabsch): the mean squared distance left, in [0, 4]. 0 for a map that is a rotation and
-    a uniform scaling on every patch; a reflection or a fold costs. Scaling each patch on its
-    own makes it blind to a smooth change of local scale (a limb stretched or thickened), which
-    the geodesic stress counts. O(P k) and P 3 × 3 SVDs for P patches of k points.
+    (Kabsch): the mean squared distance left, in [0, 2]. 0 for a map that is a rotation and
+    a uniform scaling on every patch; a fold, or the reflection of a curved patch, costs (a
+    flat patch's mirror image is a rotation of it). A patch whose images all coincide scores 1.
+    Scaling each patch on its own makes it blind to a smooth change of local scale (a limb
+    stretched or thickened), which the geodesic stress counts. O(P k) and P 3 × 3 SVDs for P
+    patches of k points.
 
     >>> X = np.random.default_rng(0).normal(size=(50, 3))
     >>> patches = np.arange(50).reshape(10, 5)
@@ -1040,12 +1044,13 @@ def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float
         rms = np.sqrt((Y**2).sum(axis=(1, 2), keepdims=True) / Y.shape[1])
         return Y / np.maximum(rms, 1e-300)
 
+    X1, X2 = np.asarray(X1, dtype=np.float64), np.asarray(X2, dtype=np.float64)
     P, Q = centred_unit(X1[patches]), centred_unit(X2[patches])
     U, S, Vt = np.linalg.svd(np.einsum("pki,pkj->pij", P, Q))
     S[:, -1] *= np.sign(np.linalg.det(U @ Vt))  # the best rotation, not a reflection
     k = patches.shape[1]
     residual = ((P**2).sum(axis=(1, 2)) + (Q**2).sum(axis=(1, 2)) - 2 * S.sum(axis=1)) / k
-    return float(np.mean(residual))
+    return float(max(np.mean(residual), 0.0))  # ≥ 0 up to rounding
 
 
 #: the sources of maps re-solved from landmark distance functions (:func:`landmark_resolve`)
