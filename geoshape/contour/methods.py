@@ -146,7 +146,10 @@ def _reweighted(parts: tuple, **weights: float) -> tuple:
 #: The default of 2026-12-05 (``default_median``): the paper parts in median units.
 _MEDIAN_PARTS = _in_units(_PAPER_PARTS, "median")
 #: The default's parts: median units, shape context at weight 0.25.
-_DEFAULT_PARTS = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
+#: the descriptor parts of the default since 2026-12-05 (pinned variants name them, so they
+#: stay put when the default's parts move)
+_PARTS_2026_12_05 = _reweighted(_MEDIAN_PARTS, shape_context=0.25)
+_DEFAULT_PARTS = _PARTS_2026_12_05
 
 #: The default: histogram distances in median units, shape context at a quarter of the inner-
 #: distance shape context's weight, 16 cyclic-DP starts per orientation (32 in all with the
@@ -178,7 +181,7 @@ def _pinned_2026_12_05(summary: str, **tracing) -> dict:
     """The default of 2026-12-05 — descriptors, matcher and mirror images written out, parts of
     at least 0.5 % of the largest joined — with its contour tracing's other settings: rows
     measured under it stay reproducible when the default moves."""
-    return dict(parts=_reweighted(_MEDIAN_PARTS, shape_context=0.25), metric="sqeuclidean", matcher="dp",
+    return dict(parts=_PARTS_2026_12_05, metric="sqeuclidean", matcher="dp",
                 matcher_options=dict(skip_cost=0.3, n_starts=16), mirror=True,
                 tracing=dict(tracing, part_fraction=0.005), summary=summary)
 

@@ -1063,10 +1063,12 @@ def rigidity_patches(ctx: PairContext, options: GeoshapeOptions) -> np.ndarray:
     one KD-tree query, O(s k log s), cached per mesh."""
     from geoshape.geometry.knn import KNNIndex
 
-    X = np.ascontiguousarray(ctx.m1.V[ctx.s1], dtype=np.float64)
-    k = min(len(X), max(4, int(round(options.rigidity_patch * len(X)))))
-    return ctx.m1.cached(("rigidity_patches", ctx.s1.tobytes(), k),
-                         lambda: np.asarray(KNNIndex(X).query(X, k=k)[1], dtype=np.int64))
+    def patches():
+        X = np.ascontiguousarray(ctx.m1.V[ctx.s1], dtype=np.float64)
+        return np.asarray(KNNIndex(X).query(X, k=k)[1], dtype=np.int64)
+
+    k = min(len(ctx.s1), max(4, int(round(options.rigidity_patch * len(ctx.s1)))))
+    return ctx.m1.cached(("rigidity_patches", ctx.s1.tobytes(), k), patches)
 
 
 def measure_rigidity(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
