@@ -18,6 +18,7 @@ import numpy as np
 
 from geoshape.correspondence.tps import fit_tps
 from geoshape.geometry.knn import nearest, nearest_searcher
+from geoshape.geometry.procrustes import similarity_procrustes
 from geoshape.geometry.sampling import euclidean_farthest_point_sampling
 
 
@@ -81,18 +82,6 @@ def nonrigid_icp(A, B, *, n_iter: int = 8, n_controls: int = 300, lam: float | N
     return (tps if return_transform else tps(B)), info
 
 
-def _procrustes(X, Y):
-    """Similarity (s, R, t) minimising ‖s X R + t − Y‖ (Umeyama)."""
-    mx, my = X.mean(0), Y.mean(0)
-    Xc, Yc = X - mx, Y - my
-    U, S, Vt = np.linalg.svd(Xc.T @ Yc)
-    D = np.eye(X.shape[1])
-    D[-1, -1] = np.sign(np.linalg.det(U @ Vt)) or 1.0
-    R = U @ D @ Vt
-    s = float((S * np.diag(D)).sum() / max((Xc**2).sum(), 1e-300))
-    return s, R, my - s * mx @ R
-
-
 def rigid_icp(X1, X2, *, n_iter: int = 50, tol: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
     """Align point set ``X2`` to ``X1`` rigidly (with uniform scale); return (X2_aligned, p2p_12).
 
@@ -114,7 +103,7 @@ def rigid_icp(X1, X2, *, n_iter: int = 50, tol: float = 1e-7) -> tuple[np.ndarra
         Y = (X2 - c2) @ R2.T * signs @ R1 * (s1 / s2) + c1
         for _ in range(n_iter):
             d, j = nearest(X1, Y)
-            s, R, t = _procrustes(Y, X1[j])
+            s, R, t = similarity_procrustes(Y, X1[j])
             Y_new = s * Y @ R + t
             if np.abs(Y_new - Y).max() < tol:
                 Y = Y_new

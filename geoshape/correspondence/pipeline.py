@@ -41,6 +41,7 @@ from geoshape.correspondence.orientation import orientation_score
 from geoshape.correspondence.reorder import REORDER_METHODS, Alignment, align_embeddings
 from geoshape.errors import InvalidOptionError
 from geoshape.geometry.knn import nearest, nearest_searcher
+from geoshape.geometry.procrustes import kabsch
 
 if TYPE_CHECKING:
     from geoshape.correspondence.mesh_matching import Correspondence, PreparedMesh
@@ -1046,10 +1047,9 @@ def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float
 
     X1, X2 = np.asarray(X1, dtype=np.float64), np.asarray(X2, dtype=np.float64)
     P, Q = centred_unit(X1[patches]), centred_unit(X2[patches])
-    U, S, Vt = np.linalg.svd(np.einsum("pki,pkj->pij", P, Q))
-    S[:, -1] *= np.sign(np.linalg.det(U @ Vt))  # the best rotation, not a reflection
+    _, trace = kabsch(P, Q)  # the best rotation, not a reflection
     k = patches.shape[1]
-    residual = ((P**2).sum(axis=(1, 2)) + (Q**2).sum(axis=(1, 2)) - 2 * S.sum(axis=1)) / k
+    residual = ((P**2).sum(axis=(1, 2)) + (Q**2).sum(axis=(1, 2)) - 2 * trace) / k
     return float(max(np.mean(residual), 0.0))  # ≥ 0 up to rounding
 
 
