@@ -8,25 +8,25 @@ import argparse
 import numpy as np
 import pytest
 
-from geoshape.bench import mirror2d
+from geoshape.bench import method_variants, mirror2d
 from geoshape.errors import InvalidOptionError
 
 
 def test_method_names_parse():
-    assert mirror2d._method_points("default") == ("default", 144, {})  # the default traces 144 points
-    assert mirror2d._method_points("default_100pt") == ("default_100pt", 100, {})
-    assert mirror2d._method_points("default_hf@128") == ("default_hf", 128, {})
-    assert mirror2d._method_points("default+skip0.4") == ("default", 144, {"skip_cost": 0.4})
-    assert mirror2d._method_points("default+starts16@128") == ("default", 128, {"n_starts": 16})
-    weighted = mirror2d._method_points("default_median+wgsc=0.01")[2]["parts"]
+    assert method_variants.parse_variant("default") == ("default", 144, {})  # the default traces 144 points
+    assert method_variants.parse_variant("default_100pt") == ("default_100pt", 100, {})
+    assert method_variants.parse_variant("default_hf@128") == ("default_hf", 128, {})
+    assert method_variants.parse_variant("default+skip0.4") == ("default", 144, {"skip_cost": 0.4})
+    assert method_variants.parse_variant("default+starts16@128") == ("default", 128, {"n_starts": 16})
+    weighted = method_variants.parse_variant("default_median+wgsc=0.01")[2]["parts"]
     assert [p[1] for p in weighted] == [1.0, 0.5, 0.01]  # only the named part's weight moves
-    assert mirror2d._method_points("default+parts0+smooth0.005@64") == (
+    assert method_variants.parse_variant("default+parts0+smooth0.005@64") == (
         "default", 64, {"part_fraction": 0.0, "smoothing": 0.005})
     for bad in ("default+starts", "default+skipX", "default+fast", "default+starts0", "default+skip-1",
                 "default@abc", "default@4", "default@128+starts8", "default+wcurvature_map=1",
                 "default+wgsc=-1", "default+wgsc", "default+parts-1", "default+smooth", "default+smooth0.2"):
         with pytest.raises(InvalidOptionError, match="bad (modifier|contour point count)"):
-            mirror2d._method_points(bad)
+            method_variants.parse_variant(bad)
 
 
 def test_rule_uses_the_reference_for_time():
@@ -72,7 +72,8 @@ def test_cache_is_keyed_by_the_contour_tracing(monkeypatch):
     from geoshape.geometry import contour
 
     plain = mirror2d.matrix_cache_name("set", "default")
-    assert mirror2d._effective(f"default+parts{contour.PART_FRACTION}") == mirror2d._effective("default")
+    same = method_variants.effective_spec(f"default+parts{contour.PART_FRACTION}")
+    assert same == method_variants.effective_spec("default")
     assert mirror2d.matrix_cache_name("set", "default+parts2") != plain
     assert mirror2d.matrix_cache_name("set", "default+smooth0.01") != plain
     monkeypatch.setattr(contour, "PART_FRACTION", 2.0)
@@ -90,8 +91,8 @@ def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkey
     assert contour_tracing("default_128pt")["part_fraction"] == 0.005
     assert contour_tracing("default_100pt")["part_fraction"] == 0.005
     # default_128pt is the default's matcher and descriptors on its own tracing
-    tracing, spec = mirror2d._effective("default_128pt")
-    assert spec == mirror2d._effective("default")[1]
+    tracing, spec = method_variants.effective_spec("default_128pt")
+    assert spec == method_variants.effective_spec("default")[1]
     assert tracing == (128, 0.005, 0.0025)
     monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
     assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned

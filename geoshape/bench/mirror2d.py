@@ -32,6 +32,8 @@ section (``default2d``) of docs/RESULTS.md. This is how candidates for ``default
 
 from __future__ import annotations
 
+from geoshape.bench.method_variants import effective_spec, matrix_cache_name, parse_variant, variant_tracing
+
 HELP = "default 2D method with and without mirror images on every dev collection; rule-based choice"
 
 DEFAULT_SETS = (
@@ -132,90 +134,6 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
     return out
 
 
-def _method_points(method: str) -> tuple[str, int, dict]:
-    """``"default@128"`` → ``("default", 128, {})``: a registered method on that many contour
-    points (the method's own unless given: 144 for default, 100 for most); ``+skipX``
-    overrides the DP skip cost (X > 0), ``+startsK`` the cyclic DP's starts per orientation (K
-    ≥ 1), ``+wNAME=X`` the weight of the method's descriptor part ``NAME`` (X ≥ 0),
-    ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
-    :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (X ≥ 0,
-    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`), in any order,
-    before ``@``. Anything else raises :class:`~geoshape.errors.InvalidOptionError` naming it,
-    before any work.
-
-    >>> _method_points("default_hf"), _method_points("default_100pt+skip0.4@128")
-    (('default_hf', 100, {}), ('default_100pt', 128, {'skip_cost': 0.4}))
-    >>> _method_points("default+starts8+skip0.2"), _method_points("default+parts0@100")
-    (('default', 144, {'n_starts': 8, 'skip_cost': 0.2}), ('default', 100, {'part_fraction': 0.0}))
-    >>> [p[:2] for p in _method_points("default_2026_11+wshape_context=1")[2]["parts"]]
-    [('idsc', 1.0), ('shape_context', 1.0), ('gsc', 0.005)]
-    """
-    from geoshape.contour.methods import CONTOUR_METHODS, contour_tracing
-    from geoshape.errors import InvalidOptionError
-    from geoshape.geometry.contour import MAX_SMOOTHING
-
-    rest, at, n = method.partition("@")
-    base, *mods = rest.split("+")
-    overrides: dict = {}
-    for mod in mods:
-        try:
-            if mod.startswith("skip") and float(mod[4:]) > 0:
-                overrides["skip_cost"] = float(mod[4:])
-                continue
-            if mod.startswith("smooth") and 0 <= float(mod[6:]) <= MAX_SMOOTHING:
-                overrides["smoothing"] = float(mod[6:])
-                continue
-            if mod.startswith("parts") and float(mod[5:]) >= 0:
-                overrides["part_fraction"] = float(mod[5:])
-                continue
-            if mod.startswith("starts") and int(mod[6:]) >= 1:
-                overrides["n_starts"] = int(mod[6:])
-                continue
-            name, eq, weight = mod[1:].partition("=")
-            parts = overrides.get("parts", CONTOUR_METHODS.get(base, {}).get("parts", ()))
-            if mod.startswith("w") and eq and float(weight) >= 0 and name in [p[0] for p in parts]:
-                overrides["parts"] = tuple((p[0], float(weight), *p[2:]) if p[0] == name else p
-                                           for p in parts)
-                continue
-        except ValueError:
-            pass
-        raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
-                                 "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
-                                 "+partsX with X >= 0, +smoothX with 0 <= X <= 0.05)")
-    if at and not (n.isdigit() and int(n) >= 8):
-        raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
-    return base, int(n) if n else contour_tracing(base)["n_points"], overrides
-
-
-def _tracing(base: str, n_points: int, overrides: dict) -> dict:
-    """:func:`~geoshape.contour.methods.contour_tracing` of method ``base`` on ``n_points``
-    points with the tracer's overrides, popped from ``overrides``."""
-    from geoshape.contour.methods import contour_tracing
-
-    tracing = contour_tracing(base, n_points)
-    tracing.update({k: overrides.pop(k) for k in ("part_fraction", "smoothing") if k in overrides})
-    return tracing
-
-
-def _effective(method: str) -> tuple[tuple, dict]:
-    """``(contour tracing, method spec with the overrides applied)`` of a ``--methods`` name:
-    two names with the same effective spec compute the same matrix."""
-    from geoshape.contour.methods import method_spec
-
-    base, n, over = _method_points(method)
-    tracing = tuple(_tracing(base, n, over).values())
-    return tracing, {k: v for k, v in method_spec(base, **over).items() if k not in ("summary", "tracing")}
-
-
-def matrix_cache_name(name: str, method: str) -> str:
-    """Cache file stem of a collection's matrix for ``method``: its name and a digest of its
-    effective spec, so a method whose registry entry changed (e.g. ``default``) is recomputed."""
-    import hashlib
-
-    digest = hashlib.sha1(repr(_effective(method)).encode()).hexdigest()[:8]
-    return f"{name}_{method}_{digest}"
-
-
 def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> dict:
     """Per registered method: the matrix, its time and the descriptors' time (cached)."""
     import json
@@ -230,8 +148,8 @@ def _method_collection(name: str, folder, work, methods: list[str], n_jobs) -> d
 
     out, contours = {}, {}
     for method in methods:
-        base, n_points, overrides = _method_points(method)
-        tracing = _tracing(base, n_points, overrides)
+        base, n_points, overrides = parse_variant(method)
+        tracing = variant_tracing(base, n_points, overrides)
         path = work / f"{matrix_cache_name(name, method)}.npy"
         meta = path.with_suffix(".json")
         if path.is_file() and meta.is_file():
@@ -272,7 +190,7 @@ def run(args) -> int:
     if args.methods:
         settings = [m.strip() for m in args.methods.split(",") if m.strip()]
         for m in settings:
-            check_choice("method", _method_points(m)[0], CONTOUR_METHODS)
+            check_choice("method", parse_variant(m)[0], CONTOUR_METHODS)
         reference = settings[0]
     else:
         settings = [s.strip() for s in args.settings.split(",") if s.strip()]
@@ -387,17 +305,17 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     from geoshape.geometry.contour import N_POINTS
 
     def spec(m):
-        return CONTOUR_METHODS[_method_points(m)[0]]
+        return CONTOUR_METHODS[parse_variant(m)[0]]
 
     def extra(m):
-        _, n, over = _method_points(m)
+        _, n, over = parse_variant(m)
         return f", {n} contour points" + "".join(
             f", weights {', '.join(f'{p[0]} {p[1]:g}' for p in v)} instead" if k == "parts" else
             f", {k} {v:g} instead" for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
-    default = _effective("default")
-    same = [m for m in methods if _effective(m) == default]
+    default = effective_spec("default")
+    same = [m for m in methods if effective_spec(m) == default]
     return (
         "## 2D default method: cross-validated choice\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "

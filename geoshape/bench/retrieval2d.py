@@ -27,10 +27,10 @@ def add_common_arguments(parser, default_methods=ALL_METHODS) -> None:
 
 def matrix_spec(dataset: str, method: str, n_points: int | None = None) -> str:
     """What a saved ``<set>_<method>.npy`` was computed with: the set, the method and a digest of
-    its registry entry and contour tracing (:func:`geoshape.bench.mirror2d.matrix_cache_name`).
+    its registry entry and contour tracing (:func:`geoshape.bench.method_variants.matrix_cache_name`).
     :func:`save_matrix` writes it beside the matrix, so a reader tells a matrix of the method
     as it is now from one saved before its entry (e.g. ``default``) changed."""
-    from geoshape.bench.mirror2d import matrix_cache_name
+    from geoshape.bench.method_variants import matrix_cache_name
 
     return matrix_cache_name(dataset, method if n_points is None else f"{method}@{n_points}")
 
