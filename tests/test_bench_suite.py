@@ -82,6 +82,32 @@ def test_sensitivity_fields_are_checked_and_kept_in_table_order():
         suite.sensitivity_fields(",")
 
 
+def test_seed_rows_change_only_the_seed_and_their_range_row_reads_the_default_and_them():
+    assert suite.seed_variants(0) == []
+    assert [o for _, o in suite.seed_variants(3)] == [{"seed": 1}, {"seed": 2}, {"seed": 3}]
+    assert suite.sensitivity_fields("none") == ()
+    body = [["default", "0.1 (3)", "0.02 (0)"], ["lb_k 60 → 30 (×0.5)", "0.5 (9)", "0.02 (0)"],
+            ["seed 0 → 1", "0.12 (4)", "— (1)"], ["seed 0 → 2", "0.09 (3)", "0.021 (0)"]]
+    row = suite.seed_range_row(body, n_sets=2, draws=2)
+    assert row[0].startswith("sampling noise: default and seeds 1–2")
+    assert row[1] == "0.09–0.12 (±20 %)"  # the lb_k row is not a draw: left out
+    assert row[2] == "0.02–0.021 (±5 %)"  # a set where a draw raised has one mean fewer
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "2"], "--seeds adds rows to the sensitivity table: it needs --sensitivity"),
+    (["--sensitivity", "--seeds", "-1"], "--seeds must be a count >= 0, got -1"),
+])
+def test_bad_seeds_stop_the_command_before_any_generation(tmp_path, capsys, argv, message):
+    from geoshape.__main__ import main
+
+    code = main(["bench", "correspondence", "--suite", "generalization", *argv, "--dev-dir", str(tmp_path),
+                 "--no-results"])
+    assert code == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_sets_are_selected_by_name_in_suite_order():
     from geoshape.errors import InvalidOptionError
 
@@ -172,6 +198,29 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
     assert all(re.fullmatch(r"\S+ \(\d+\)", c) for c in cells)
     assert all(f"{float(c.split()[0]):.4g}" == c.split()[0] for c in cells)
     assert "--fields n_refine" in text
+    assert "sampling noise" not in text  # no --seeds: no seed rows
+
+
+def test_sensitivity_with_seeds_adds_the_draws_and_their_range(tmp_path, monkeypatch):
+    from geoshape.bench import correspondence  # the run imports evaluate_pairs from here
+
+    seen = []
+
+    original = correspondence.evaluate_pairs
+
+    def recording(*a, options=None, **kw):
+        seen.append(dict(options or {}))
+        return original(*a, options=options, **kw)
+
+    monkeypatch.setattr(correspondence, "evaluate_pairs", recording)
+    args = _tiny_suite_args(tmp_path, monkeypatch, sensitivity=True, fields="none", seeds=2)
+    assert suite.run_suite(args) == 0
+    assert seen == [{}, {"seed": 1}, {"seed": 2}]
+    text = (tmp_path / "RESULTS.md").read_text()
+    assert "--fields none --seeds 2" in text
+    rows = [line for line in text.splitlines() if line.startswith("| ")][1:]  # below the header
+    assert [r.split("|")[1].strip()[:12] for r in rows] == ["default", "seed 0 → 1 (", "seed 0 → 2 (",
+                                                            "sampling noi"]
 
 
 def test_a_misspelled_sensitivity_field_stops_the_command_before_any_generation(tmp_path, capsys):

@@ -68,7 +68,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "doubled or set to 0, re-deciding on each pair's candidates (its own RESULTS section)")
     p.add_argument("--fields", default=None,
                    help="with --sensitivity: comma-separated geoshape options to vary (default: every "
-                   "numeric default of the sensitivity table)")
+                   "numeric default of the sensitivity table; none: only the --seeds rows)")
+    p.add_argument("--seeds", type=int, default=0, metavar="N",
+                   help="with --sensitivity: also N rows of the default with the sampling seed 1..N, and "
+                   "their range per set: the method's own sampling noise (default 0)")
 
 
 def run_pyfm(V1, F1, V2, F2) -> np.ndarray:
@@ -246,7 +249,8 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
                     p2p = run_pyfm(V1, F1, V2, F2)
                 else:
                     extra = options if (options and m == "geoshape") else {}
-                    p2p = correspond(V1, F1, V2, F2, method=m, seed=seed, **extra).p2p_12
+                    kw = {"seed": seed, **extra}  # an option's own seed (a --seeds row) wins
+                    p2p = correspond(V1, F1, V2, F2, method=m, **kw).p2p_12
             except GeoshapeError as exc:
                 results.append(PairResult(m, name, error=str(exc)))
                 line.append(f"{m} FAILED ({exc})")
@@ -354,6 +358,10 @@ def _run(args: argparse.Namespace) -> int:
     suite_only = [flag for flag, attr in flags if getattr(args, attr, False)]
     if suite_only and not args.suite:
         raise InvalidOptionError(f"{suite_only[0]} needs --suite generalization")
+    if getattr(args, "seeds", 0) < 0:
+        raise InvalidOptionError(f"--seeds must be a count >= 0, got {args.seeds}")
+    if getattr(args, "seeds", 0) and not getattr(args, "sensitivity", False):
+        raise InvalidOptionError("--seeds adds rows to the sensitivity table: it needs --sensitivity")
     reports = suite_only + ["--candidates"] * bool(getattr(args, "candidates", None))
     if len(reports) > 1:
         raise InvalidOptionError(f"{' and '.join(reports)} each make a different report: give one")

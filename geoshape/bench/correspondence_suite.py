@@ -201,6 +201,8 @@ def sensitivity_fields(names: str | None) -> tuple[str, ...]:
     in table order; a name outside the table raises :class:`~geoshape.errors.InvalidOptionError`."""
     if not names:
         return SENSITIVITY_FIELDS
+    if names.strip().lower() == "none":  # only the seed rows of --seeds
+        return ()
     wanted = _named("--fields", "option", "sensitivity field", names, list(SENSITIVITY_FIELDS))
     return tuple(n for n in SENSITIVITY_FIELDS if n in wanted)
 
@@ -220,6 +222,33 @@ def sensitivity_variants(factors=SENSITIVITY_FACTORS, fields=SENSITIVITY_FIELDS)
             GeoshapeOptions(**{name: new})  # checked now, not after an hour
             out.append((f"{name} {value} → {new} (×{f:g})", {name: new}))
     return out
+
+
+def seed_variants(draws: int) -> list[tuple[str, dict]]:
+    """(label, geoshape options) with the sampling seed changed to 1 … ``draws`` (another draw of
+    every farthest-point start and random sample, every constant kept): the method's own
+    sampling noise, against which a constant's ×0.5 / ×2 row can be read."""
+    from geoshape.correspondence.pipeline import GeoshapeOptions
+
+    default = GeoshapeOptions().seed
+    seeds = [s for s in range(draws + 1) if s != default][:draws]
+    return [(f"seed {default} → {s} (another draw of every sampling)", {"seed": s}) for s in seeds]
+
+
+def seed_range_row(body: list[list[str]], n_sets: int, draws: int) -> list[str]:
+    """The sensitivity table's last row: per set, the lowest and highest mean of the default
+    row and the ``draws`` seed rows (the last ``draws`` rows of ``body``), and the largest
+    move from the default in per cent."""
+    rows = [body[0]] + body[len(body) - draws:]
+    cells = []
+    for j in range(1, n_sets + 1):
+        means = [float(r[j].split()[0]) for r in rows if r[j].split()[0] != "—"]
+        if len(means) < 2:
+            cells.append("—")
+            continue
+        move = max(abs(m / means[0] - 1) for m in means[1:]) if means[0] > 0 else float("nan")
+        cells.append(f"{min(means):.4g}–{max(means):.4g} (±{100 * move:.0f} %)")
+    return [f"sampling noise: default and seeds 1–{draws}, lowest–highest (largest move)"] + cells
 
 
 def selected_sets(names: str | None) -> list[DevSet]:
@@ -330,9 +359,12 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
     header = ["geoshape option"] + [s.name for s, _ in sets]
     only = _sets_flag(args, sets)
     if getattr(args, "fields", None):
-        only += f" --fields {','.join(fields)}"
+        only += f" --fields {','.join(fields) or 'none'}"
+    draws = getattr(args, "seeds", 0) or 0
+    if draws:
+        only += f" --seeds {draws}"
     body = []
-    for label, options in [("default", {})] + sensitivity_variants(fields=fields):
+    for label, options in [("default", {})] + sensitivity_variants(fields=fields) + seed_variants(draws):
         log(f"== sensitivity: {label}")
         row = [label]
         for spec, folder in sets:
@@ -342,13 +374,19 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
             m = set_metrics(results, has_sym)
             row.append(_mean_failures(m["mean"], m["failures"]))
         body.append(row)
+    if draws:
+        body.append(seed_range_row(body, len(sets), draws))
     limit = _limit_and_section_flags(args)
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. Mean direct "
             f"error per set (as in the generalization suite; in brackets the failures, pairs above "
             f"{FAILURE_ERROR}) of the geoshape method with one default changed ×0.5 and ×2 (counts "
-            f"rounded, at least 1) ({machine_note()}).\n\n"
+            f"rounded, at least 1)"
+            + (f"; then the default with the sampling seed changed (every constant kept), and the range "
+               f"of the default and those {draws} draws: the noise a constant's row can be read against"
+               if draws else "")
+            + f" ({machine_note()}).\n\n"
             + markdown_table(header, body) + "\n")
     _write(args, SENSITIVITY_SECTION, text)
     return 0
