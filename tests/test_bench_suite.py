@@ -89,14 +89,25 @@ def test_seed_rows_change_only_the_seed_and_their_range_row_reads_the_default_an
     body = [["default", "0.1 (3)", "0.02 (0)"], ["lb_k 60 → 30 (×0.5)", "0.5 (9)", "0.02 (0)"],
             ["seed 0 → 1", "0.12 (4)", "— (1)"], ["seed 0 → 2", "0.09 (3)", "0.021 (0)"]]
     row = suite.seed_range_row(body, n_sets=2, draws=2)
-    assert row[0].startswith("sampling noise: default and seeds 1–2")
+    assert row[0].startswith("sampling noise: the default and 2 other seeds")
     assert row[1] == "0.09–0.12 (±20 %)"  # the lb_k row is not a draw: left out
     assert row[2] == "0.02–0.021 (±5 %)"  # a set where a draw raised has one mean fewer
+    body[0][1] = "— (5)"  # the default raised: no move from it to report
+    assert suite.seed_range_row(body, n_sets=2, draws=2)[1] == "—"
+    # the draws skip the seed the default row ran with
+    assert [o for _, o in suite.seed_variants(3, base=2)] == [{"seed": 0}, {"seed": 1}, {"seed": 3}]
+    assert suite.seed_variants(1, base=2)[0][0].startswith("seed 2 → 0 ")
+    from geoshape.errors import InvalidOptionError
+
+    with pytest.raises(InvalidOptionError, match="--fields none stands alone"):
+        suite.sensitivity_fields("none,lb_k")
 
 
 @pytest.mark.parametrize("argv, message", [
     (["--seeds", "2"], "--seeds adds rows to the sensitivity table: it needs --sensitivity"),
-    (["--sensitivity", "--seeds", "-1"], "--seeds must be a count >= 0, got -1"),
+    (["--sensitivity", "--seeds", "-1"], "--seeds must be a count from 0 to 10, got -1"),
+    (["--sensitivity", "--seeds", "11"], "--seeds must be a count from 0 to 10, got 11"),
+    (["--sensitivity", "--fields", "none"], "--fields none leaves only the default row: give --seeds N too"),
 ])
 def test_bad_seeds_stop_the_command_before_any_generation(tmp_path, capsys, argv, message):
     from geoshape.__main__ import main
@@ -203,6 +214,7 @@ def test_sensitivity_run_writes_its_own_section_and_leaves_the_suite_table(tmp_p
 
 def test_sensitivity_with_seeds_adds_the_draws_and_their_range(tmp_path, monkeypatch):
     from geoshape.bench import correspondence  # the run imports evaluate_pairs from here
+    from geoshape.correspondence import mesh_matching  # and evaluate_pairs imports correspond
 
     seen = []
 
@@ -212,10 +224,19 @@ def test_sensitivity_with_seeds_adds_the_draws_and_their_range(tmp_path, monkeyp
         seen.append(dict(options or {}))
         return original(*a, options=options, **kw)
 
+    seeds_used = []
+    real_correspond = mesh_matching.correspond
+
+    def correspond(*a, **kw):
+        seeds_used.append(kw["seed"])
+        return real_correspond(*a, **kw)
+
     monkeypatch.setattr(correspondence, "evaluate_pairs", recording)
+    monkeypatch.setattr(mesh_matching, "correspond", correspond)
     args = _tiny_suite_args(tmp_path, monkeypatch, sensitivity=True, fields="none", seeds=2)
     assert suite.run_suite(args) == 0
     assert seen == [{}, {"seed": 1}, {"seed": 2}]
+    assert seeds_used == [0, 1, 2]  # the method got each row's seed (the landmarks keep --seed 0)
     text = (tmp_path / "RESULTS.md").read_text()
     assert "--fields none --seeds 2" in text
     rows = [line for line in text.splitlines() if line.startswith("| ")][1:]  # below the header

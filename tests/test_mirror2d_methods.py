@@ -97,3 +97,11 @@ def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkey
     monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
     assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned
     assert mirror2d.matrix_cache_name("set", "default") != plain
+
+
+def test_the_default_s_matrix_digest_is_pinned():
+    """Saved matrices are found by this digest (bench mirror2d's cache, the .spec files of bench
+    rerank): a refactor that changed it would silently recompute every cached matrix. Update it
+    only when the default's computation really changes."""
+    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_9e4dce61"
+

@@ -70,8 +70,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --sensitivity: comma-separated geoshape options to vary (default: every "
                    "numeric default of the sensitivity table; none: only the --seeds rows)")
     p.add_argument("--seeds", type=int, default=0, metavar="N",
-                   help="with --sensitivity: also N rows of the default with the sampling seed 1..N, and "
+                   help="with --sensitivity: also N rows of the default with N other sampling seeds, and "
                    "their range per set: the method's own sampling noise (default 0)")
+
+
+#: the most ``--seeds`` rows a sensitivity table takes (each is a full run of every set)
+MAX_SEED_DRAWS = 10
 
 
 def run_pyfm(V1, F1, V2, F2) -> np.ndarray:
@@ -228,7 +232,9 @@ def evaluate_pairs(folder, pairs_file: str, methods: list[str], *, limit: int | 
     With ``spread`` the ``limit`` pairs are evenly spaced rows instead (every class of a
     file sorted by class kept).
     Returns the results (pair by pair, methods in turn) and whether the set has a
-    symmetric ground truth. ``options`` go to the ``geoshape`` method only.
+    symmetric ground truth. ``options`` go to the ``geoshape`` method only. ``seed`` picks the
+    landmarks and seeds every method's sampling, unless ``options`` names the method's own
+    ``seed`` (the ``--seeds`` rows of the sensitivity table).
     """
     from geoshape.correspondence.mesh_matching import correspond
     from geoshape.errors import GeoshapeError
@@ -289,7 +295,8 @@ def candidate_pools(folder, pairs, *, landmarks: int = 1000, seed: int = 0, opti
     refined maps are taken before the full-resolution stage; on large meshes, where refined maps
     live on samples, each landmark reads the image of its nearest refinement sample. A pair on
     which the method raises a :class:`~geoshape.errors.GeoshapeError` yields a pool with no
-    candidates and the message in ``error``. O(pipeline + candidates × landmarks) per pair."""
+    candidates and the message in ``error``. ``seed`` as in :func:`evaluate_pairs`.
+    O(pipeline + candidates × landmarks) per pair."""
     from geoshape.correspondence.mesh_matching import correspond
     from geoshape.errors import GeoshapeError
     from geoshape.geometry.knn import nearest
@@ -301,7 +308,8 @@ def candidate_pools(folder, pairs, *, landmarks: int = 1000, seed: int = 0, opti
                            feature_points=scape_feature_points(folder)):
         V1, V2, F2, ev = lp.V1, lp.V2, lp.F2, lp.evaluator
         try:
-            result = correspond(V1, lp.F1, V2, F2, method="geoshape", seed=seed, **(options or {}))
+            kw = {"seed": seed, **(options or {})}  # an option's own seed wins, as in evaluate_pairs
+            result = correspond(V1, lp.F1, V2, F2, method="geoshape", **kw)
         except GeoshapeError as exc:
             yield CandidatePool(lp.name, [], [], [], error=str(exc))
             continue
@@ -358,10 +366,13 @@ def _run(args: argparse.Namespace) -> int:
     suite_only = [flag for flag, attr in flags if getattr(args, attr, False)]
     if suite_only and not args.suite:
         raise InvalidOptionError(f"{suite_only[0]} needs --suite generalization")
-    if getattr(args, "seeds", 0) < 0:
-        raise InvalidOptionError(f"--seeds must be a count >= 0, got {args.seeds}")
-    if getattr(args, "seeds", 0) and not getattr(args, "sensitivity", False):
+    seeds = getattr(args, "seeds", 0) or 0
+    if not 0 <= seeds <= MAX_SEED_DRAWS:
+        raise InvalidOptionError(f"--seeds must be a count from 0 to {MAX_SEED_DRAWS}, got {seeds}")
+    if seeds and not getattr(args, "sensitivity", False):
         raise InvalidOptionError("--seeds adds rows to the sensitivity table: it needs --sensitivity")
+    if (getattr(args, "fields", None) or "").strip().lower() == "none" and not seeds:
+        raise InvalidOptionError("--fields none leaves only the default row: give --seeds N too")
     reports = suite_only + ["--candidates"] * bool(getattr(args, "candidates", None))
     if len(reports) > 1:
         raise InvalidOptionError(f"{' and '.join(reports)} each make a different report: give one")

@@ -17,7 +17,9 @@ raised; flips — failures whose symmetry-aware error is under half the direct o
 left/right swap, not a lost map); median seconds per pair. ``--sensitivity`` reruns the
 ``geoshape`` method with each numeric default of
 :class:`~geoshape.correspondence.pipeline.GeoshapeOptions` (``SENSITIVITY_FIELDS``) ×0.5 and ×2
-and reports the mean direct error per set. ``--decision-weights`` runs the method once per pair,
+and reports the mean direct error per set; ``--seeds N`` adds N rows of the default with other
+sampling seeds and their range per set, the noise those rows are read against (``--fields none``:
+only those). ``--decision-weights`` runs the method once per pair,
 keeps every refined candidate with its errors, and re-takes the decision with each exponent of
 :func:`~geoshape.correspondence.pipeline.decision_score` halved, doubled and left out.
 """
@@ -199,11 +201,15 @@ def _named(flag: str, kind: str, label: str, names: str, valid: list[str]) -> li
 def sensitivity_fields(names: str | None) -> tuple[str, ...]:
     """The options named in the comma-separated ``names`` (all of ``SENSITIVITY_FIELDS`` when None),
     in table order; a name outside the table raises :class:`~geoshape.errors.InvalidOptionError`."""
+    from geoshape.errors import InvalidOptionError
+
     if not names:
         return SENSITIVITY_FIELDS
     if names.strip().lower() == "none":  # only the seed rows of --seeds
         return ()
-    wanted = _named("--fields", "option", "sensitivity field", names, list(SENSITIVITY_FIELDS))
+    wanted = _named("--fields", "option", "sensitivity field", names, list(SENSITIVITY_FIELDS) + ["none"])
+    if "none" in wanted:
+        raise InvalidOptionError(f"--fields none stands alone (only the --seeds rows), got {names!r}")
     return tuple(n for n in SENSITIVITY_FIELDS if n in wanted)
 
 
@@ -224,31 +230,35 @@ def sensitivity_variants(factors=SENSITIVITY_FACTORS, fields=SENSITIVITY_FIELDS)
     return out
 
 
-def seed_variants(draws: int) -> list[tuple[str, dict]]:
-    """(label, geoshape options) with the sampling seed changed to 1 … ``draws`` (another draw of
-    every farthest-point start and random sample, every constant kept): the method's own
-    sampling noise, against which a constant's ×0.5 / ×2 row can be read."""
-    from geoshape.correspondence.pipeline import GeoshapeOptions
+def seed_variants(draws: int, base: int = 0) -> list[tuple[str, dict]]:
+    """(label, geoshape options) with the method's sampling seed changed from ``base`` (the
+    seed of the table's default row) to each of the ``draws`` smallest other seeds ≥ 0: another
+    draw of every farthest-point start and random sample, every constant kept. The method's own
+    sampling noise, against which a constant's ×0.5 / ×2 row can be read.
 
-    default = GeoshapeOptions().seed
-    seeds = [s for s in range(draws + 1) if s != default][:draws]
-    return [(f"seed {default} → {s} (another draw of every sampling)", {"seed": s}) for s in seeds]
+    >>> [o for _, o in seed_variants(2, base=1)]
+    [{'seed': 0}, {'seed': 2}]
+    """
+    seeds = [s for s in range(draws + 1) if s != base][:draws]
+    return [(f"seed {base} → {s} (another draw of every sampling)", {"seed": s}) for s in seeds]
 
 
 def seed_range_row(body: list[list[str]], n_sets: int, draws: int) -> list[str]:
     """The sensitivity table's last row: per set, the lowest and highest mean of the default
-    row and the ``draws`` seed rows (the last ``draws`` rows of ``body``), and the largest
-    move from the default in per cent."""
+    row (``body[0]``) and the ``draws`` seed rows (the last ``draws`` rows of ``body``), and the
+    largest move of a draw from the default in per cent. A draw that raised on some pair ("—")
+    is left out of its set's range; a default that did leaves no move to report ("—")."""
     rows = [body[0]] + body[len(body) - draws:]
     cells = []
     for j in range(1, n_sets + 1):
-        means = [float(r[j].split()[0]) for r in rows if r[j].split()[0] != "—"]
-        if len(means) < 2:
+        values = [r[j].split()[0] for r in rows]
+        means = [float(v) for v in values if v != "—"]
+        if values[0] == "—" or len(means) < 2:
             cells.append("—")
             continue
         move = max(abs(m / means[0] - 1) for m in means[1:]) if means[0] > 0 else float("nan")
         cells.append(f"{min(means):.4g}–{max(means):.4g} (±{100 * move:.0f} %)")
-    return [f"sampling noise: default and seeds 1–{draws}, lowest–highest (largest move)"] + cells
+    return [f"sampling noise: the default and {draws} other seeds, lowest–highest (largest move)"] + cells
 
 
 def selected_sets(names: str | None) -> list[DevSet]:
@@ -364,7 +374,8 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
     if draws:
         only += f" --seeds {draws}"
     body = []
-    for label, options in [("default", {})] + sensitivity_variants(fields=fields) + seed_variants(draws):
+    rows = [("default", {})] + sensitivity_variants(fields=fields) + seed_variants(draws, base=args.seed)
+    for label, options in rows:
         log(f"== sensitivity: {label}")
         row = [label]
         for spec, folder in sets:

@@ -19,7 +19,8 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
     overrides the DP skip cost (X > 0), ``+startsK`` the cyclic DP's starts per orientation (K
     ≥ 1), ``+wNAME=X`` the weight of the method's descriptor part ``NAME`` (X ≥ 0),
     ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
-    :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (X ≥ 0,
+    :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (0 ≤ X ≤
+    :data:`~geoshape.geometry.contour.MAX_SMOOTHING`,
     as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`), in any order,
     before ``@``. Anything else raises :class:`~geoshape.errors.InvalidOptionError` naming it,
     before any work.
@@ -62,7 +63,7 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
                                  "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
-                                 "+partsX with X >= 0, +smoothX with 0 <= X <= 0.05)")
+                                 f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g})")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides
