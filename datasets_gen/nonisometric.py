@@ -38,6 +38,14 @@ FAMILIES: dict[str, dict[str, dict[str, tuple[float, float]]]] = {
     "biped": {
         "long-armed": {"arm": (1.35, 0.85), "hand": (1.2, 0.9), "shoulder": (1.1, 0.9)},
         "short-armed": {"arm": (0.72, 1.15), "hand": (0.85, 1.1), "shoulder": (0.9, 1.1)},
+        # a gorilla-like body against a slim human-like one (paired with ``paired_families``): long, thick
+        # arms and shoulders, short thick legs, a heavy torso and almost no neck. Against
+        # "human-like" the arms grow by 30 % and the legs shrink by a third, every part thickens by
+        # about half; the area grows by about a third.
+        "ape-like": {"arm": (1.3, 1.35), "hand": (1.25, 1.2), "shoulder": (1.3, 1.3), "torso": (0.9, 1.45),
+                     "hip": (1.1, 1.3), "leg": (0.72, 1.35), "foot": (0.9, 1.2), "neck": (0.5, 1.4),
+                     "head": (0.9, 1.1)},
+        "human-like": {"arm": (1.0, 0.9), "shoulder": (1.0, 0.9), "torso": (1.0, 0.9), "leg": (1.05, 0.9)},
     },
     "quadruped": {
         "heavy": {"body": (1.0, 1.4), "front": (0.85, 1.3), "hind": (0.85, 1.3), "neck": (0.9, 1.3),
@@ -225,6 +233,23 @@ def _group_measures(skeleton, limbs: Sequence[str]) -> dict[str, tuple[float, fl
     return out
 
 
+def _paired_families(classes: Sequence[str], families: Mapping[str, Sequence[str]] | None) -> dict:
+    """Per class of ``classes``, the two families its pairs use: ``families[cls]`` checked
+    (two distinct names of :data:`FAMILIES` ``[cls]``), else the class's first two."""
+    families = dict(families or {})
+    for cls in families:
+        if cls not in classes:
+            raise InvalidOptionError(f"paired_families names class {cls!r}, which is not generated "
+                                     f"(classes: {', '.join(classes)})")
+    paired = {}
+    for cls in classes:
+        names = tuple(families.get(cls, tuple(FAMILIES[cls])[:2]))
+        if len(names) != 2 or names[0] == names[1]:
+            raise InvalidOptionError(f"{cls}: give two different families, got {list(names)}")
+        paired[cls] = tuple(check_choice(f"{cls} family", f, tuple(FAMILIES[cls])) for f in names)
+    return paired
+
+
 def write_nonisometric_set(
     out_dir: str | os.PathLike,
     *,
@@ -237,13 +262,16 @@ def write_nonisometric_set(
     variation: float = 0.1,
     jitter: float = 0.04,
     amount: float = 1.0,
+    paired_families: Mapping[str, Sequence[str]] | None = None,
     progress=None,
 ) -> dict:
     """Write non-isometric pairs with exact ground truth in the ``pairs.csv`` layout.
 
     Pair ``k`` uses class ``classes[k % len(classes)]``; per class the pairs cycle over
     ``templates`` instances (proportions varied by ``variation`` as in the articulated
-    generator) and alternate the direction between the two families. Written into
+    generator) and alternate the direction between two families of :data:`FAMILIES`: those
+    ``paired_families`` names for the class (e.g. ``{"biped": ("ape-like", "human-like")}``), else
+    the class's first two (long- vs short-armed bipeds, heavy vs slim quadrupeds). Written into
     ``out_dir`` (each file atomically): ``p<k>_<class><instance>_<family>.off`` (two per
     pair), ``corres/<class><instance>.vts`` (ids 1..n: identity ground truth as landmarks),
     ``corres/<class><instance>.sym.vts`` (left/right mirror, :func:`mirror_map`),
@@ -274,6 +302,7 @@ def write_nonisometric_set(
         if isinstance(value, bool) or int(value) != value or not (lo <= int(value) <= hi):
             raise InvalidOptionError(f"{name} must be a whole number in [{lo}, {hi}], got {value!r}")
     n_pairs, templates, seed = int(n_pairs), int(templates), int(seed)
+    paired = _paired_families(classes, paired_families)
     out = Path(out_dir)
     cache: dict = {}
     files, labels, rows, ratios, pairs_json = [], [], [], [], []
@@ -294,7 +323,7 @@ def write_nonisometric_set(
                               "".join(f"{i + 1}\n" for i in sym.tolist()))
             cache[(cls, inst)] = (tpl, tname)
         tpl, tname = cache[(cls, inst)]
-        fams = tuple(FAMILIES[cls])
+        fams = paired[cls]
         fams = fams if (j // templates + inst) % 2 == 0 else fams[::-1]
         pair = make_pair(tpl, fams, [seed, ci, k], jitter=jitter, amount=amount)
         names = [f"p{k:02d}_{tname}_{f}.off" for f in fams]
@@ -322,6 +351,7 @@ def write_nonisometric_set(
         "target_vertices": int(target_vertices), "resolution": int(resolution),
         "variation": float(variation), "jitter": float(jitter), "amount": float(amount),
         "families": FAMILIES,
+        "paired_families": {c: list(f) for c, f in paired.items()},
         "ground_truth": "exact identity: vertex i of the source corresponds to vertex i of the target "
                         "(both are the same template re-proportioned and posed; corres/<template>.vts "
                         "lists 1..n). .sym.vts: the vertex nearest the mirror image of each vertex of the "

@@ -116,8 +116,38 @@ def test_cli_nonisometric_layout_and_determinism(tmp_path, capsys):
         if f.is_file():
             assert f.read_bytes() == (again / f.name).read_bytes()
     capsys.readouterr()
-    for bad in (["--pairs", "0"], ["--classes", "hand"], ["--jitter", "0.5"], ["--vertices", "10"]):
+    for bad in (["--pairs", "0"], ["--classes", "hand"], ["--jitter", "0.5"], ["--vertices", "10"],
+                ["--families", "biped=ape-like"], ["--families", "biped=ape-like:gorilla"],
+                ["--families", "hand=ape-like:human-like"], ["--families", "biped=ape-like:ape-like"]):
         assert _main(["gen", "nonisometric", *bad, "--out", str(tmp_path / "bad")]) == 2
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "error" in err
     assert not (tmp_path / "bad").exists()
+
+
+def test_ape_like_against_human_like_bipeds(tmp_path):
+    """The gorilla-like family of the held-out non-isometric benchmark: chosen per class with
+    ``paired_families``, exact ground truth kept, and far from isometric (arms longer, legs shorter,
+    every part thicker than the human-like body)."""
+    import json
+
+    from geoshape_datasets_gen.nonisometric import write_nonisometric_set
+
+    from geoshape.io.datasets import read_pairs
+    from geoshape.io.mesh_io import load_mesh
+
+    res = write_nonisometric_set(tmp_path, n_pairs=2, classes=("biped",), templates=1, target_vertices=600,
+                                 resolution=64, paired_families={"biped": ("ape-like", "human-like")})
+    meta = json.loads((tmp_path / "generator.json").read_text())
+    assert meta["paired_families"] == {"biped": ["ape-like", "human-like"]}
+    details = meta["pair_details"]
+    assert [d["families"] for d in details] == [["ape-like", "human-like"], ["human-like", "ape-like"]]
+    r = details[0]["target_over_source"]  # human-like over ape-like
+    assert r["arm"]["length"] < 0.85 and r["leg"]["length"] > 1.3
+    assert all(r[g]["thickness"] < 0.8 for g in ("arm", "leg", "torso"))
+    for pair in read_pairs(tmp_path):
+        Vs, Fs = load_mesh(pair.source)
+        Vt, Ft = load_mesh(pair.target)
+        assert np.array_equal(Fs, Ft) and np.array_equal(pair.source_landmarks, pair.target_landmarks)
+    assert len(res["pairs"]) == 2
+

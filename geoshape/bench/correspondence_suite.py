@@ -88,6 +88,15 @@ DEV_SETS = (
     DevSet("nonisometric_r5k", "pairs.csv", generator="remesh",
            params={"dataset": "nonisometric", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
                    "iterations": 6}),
+    # gorilla-like against human-like bodies (the held-out non-isometric benchmark's kind of
+    # pair), as generated and with both meshes remeshed on their own
+    DevSet("nonisometric_ape", "pairs.csv", generator="nonisometric",
+           params={"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
+                   "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0, "classes": ["biped"],
+                   "paired_families": {"biped": ["ape-like", "human-like"]}}),
+    DevSet("nonisometric_ape_r5k", "pairs.csv", generator="remesh",
+           params={"dataset": "nonisometric_ape", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES,
+                   "seed": DEV_SEED, "iterations": 6}),
 )
 
 

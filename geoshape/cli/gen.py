@@ -13,8 +13,9 @@
   ``DIR/<stem>.off`` with ``<stem>.to_original.vts`` / ``<stem>.from_original.vts``.
 - ``gen remesh-set --dataset NAME|DIR [--pairs N] --vertices N --seed S --out DIR``: both
   meshes of every pair remeshed independently, composed ground truth, ``pairs.csv``.
-- ``gen nonisometric --out DIR [--pairs N] [--seed S]``: one template in two body
-  proportions (long/short arms, heavy/slim), posed; exact ground truth, ``pairs.csv``.
+- ``gen nonisometric --out DIR [--pairs N] [--seed S] [--families CLASS=A:B]``: one template in
+  two body proportions (long/short arms, heavy/slim, ape-like/human-like), posed; exact ground
+  truth, ``pairs.csv``.
 
 Every file is written atomically.
 """
@@ -377,6 +378,9 @@ def _register_dev_sets(sub) -> None:
                    help="log-normal spread of each family's factors per pair (default 0.04)")
     n.add_argument("--amount", type=RangeType(float, 0.0, 1.0), default=1.0,
                    help="fraction of the joint limits used by random poses (default 1)")
+    n.add_argument("--families", default=None, metavar="CLASS=A:B,...",
+                   help="the two families a class's pairs use, e.g. biped=ape-like:human-like (default: "
+                   "long-armed:short-armed bipeds, heavy:slim quadrupeds)")
     n.set_defaults(handler=run_nonisometric)
     declare_outputs(n, all_or_nothing=False, out="folder")
 
@@ -421,11 +425,21 @@ def run_remesh_set(args: argparse.Namespace) -> int:
 def run_nonisometric(args: argparse.Namespace) -> int:
     from geoshape_datasets_gen.nonisometric import write_nonisometric_set
 
+    from geoshape.errors import InvalidOptionError
+
     classes = [c.strip() for c in args.classes.split(",") if c.strip()]
+    families = {}
+    for item in (args.families or "").split(","):
+        if not item.strip():
+            continue
+        cls, eq, names = item.partition("=")
+        if not eq or names.count(":") != 1:
+            raise InvalidOptionError(f"--families: {item.strip()!r} is not CLASS=A:B")
+        families[cls.strip()] = tuple(n.strip() for n in names.split(":"))
     res = write_nonisometric_set(
         args.out, n_pairs=args.pairs, classes=classes, templates=args.templates, seed=args.seed,
         target_vertices=args.vertices, resolution=args.resolution, variation=args.variation,
-        jitter=args.jitter, amount=args.amount,
+        jitter=args.jitter, amount=args.amount, paired_families=families or None,
     )
     print(f"{args.out}: {len(res['files'])} meshes, {len(res['pairs'])} pairs with exact identity ground "
           f"truth (pairs.csv, corres/*.vts, labels.csv)")
