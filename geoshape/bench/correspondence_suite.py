@@ -6,7 +6,9 @@ parameters), remeshed SCAPE and remeshed TOSCA r5k (``gen remesh-set``, 30 pairs
 seed 0; remeshed SCAPE scored on its snapped feature points, ``pairs_features.csv``, like SCAPE)
 the non-isometric family (``gen nonisometric``, 30 pairs, seed 0) and its remeshed copy
 (``nonisometric_r5k``: both meshes of every pair remeshed on their own, so the two characters
-share no connectivity, as the unseen non-isometric pairs do not). Every pair is run and
+share no connectivity, as the unseen non-isometric pairs do not), and ape-like against
+human-like bipeds (``nonisometric_ape``: ``gen nonisometric --families biped=ape-like:human-like``,
+30 pairs, seed 0) with its remeshed copy (``nonisometric_ape_r5k``). Every pair is run and
 scored by :func:`geoshape.bench.correspondence.evaluate_pairs` (the bench's one per-pair
 evaluation); this module adds only the orchestration, the per-set metrics and the tables.
 
