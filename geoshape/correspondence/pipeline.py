@@ -166,7 +166,8 @@ class GeoshapeOptions:
     """When the repaired map would win, also re-solve the best other wanted map the same way."""
     # Why 1 %: a patch then spans about a limb's width on a body, where a front↔back half-turn
     # shows (a foot mapped onto a heel); on the candidate pools of the five 5k-vertex dev sets
-    # 0.5 %, 1 % and 2 % ranked all 22 right/wrong twins alike (docs/correspondence3d.md).
+    # 0.5 %, 1 % and 2 % ranked all 22 right/wrong twins alike (docs/correspondence3d.md). The
+    # ape-like family, added later, has 3 such twins, all ranked wrong (Known limitations).
     rigidity_patch: float = field(default=0.01, metadata=_float(0.0))
     """Share of refinement samples per patch of the rigidity deciding repaired vs polished (0: off)."""
 
