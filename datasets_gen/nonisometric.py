@@ -239,7 +239,7 @@ def _paired_families(classes: Sequence[str], families: Mapping[str, Sequence[str
     families = dict(families or {})
     for cls in families:
         if cls not in classes:
-            raise InvalidOptionError(f"paired_families names class {cls!r}, which is not generated "
+            raise InvalidOptionError(f"families given for class {cls!r}, which is not generated "
                                      f"(classes: {', '.join(classes)})")
     paired = {}
     for cls in classes:
