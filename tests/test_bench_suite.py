@@ -86,14 +86,14 @@ def test_seed_rows_change_only_the_seed_and_their_range_row_reads_the_default_an
     assert suite.seed_variants(0) == []
     assert [o for _, o in suite.seed_variants(3)] == [{"seed": 1}, {"seed": 2}, {"seed": 3}]
     assert suite.sensitivity_fields("none") == ()
-    body = [["default", "0.1 (3)", "0.02 (0)"], ["lb_k 60 → 30 (×0.5)", "0.5 (9)", "0.02 (0)"],
-            ["seed 0 → 1", "0.12 (4)", "— (1)"], ["seed 0 → 2", "0.09 (3)", "0.021 (0)"]]
-    row = suite.seed_range_row(body, n_sets=2, draws=2)
+    nan = float("nan")
+    means = [[0.1, 0.02], [0.5, 0.02], [0.12, nan], [0.09, 0.021]]  # default, lb_k ×0.5, seeds 1 and 2
+    row = suite.seed_range_row(means, draws=2)
     assert row[0].startswith("sampling noise: the default and 2 other seeds")
     assert row[1] == "0.09–0.12 (±20 %)"  # the lb_k row is not a draw: left out
     assert row[2] == "0.02–0.021 (±5 %)"  # a set where a draw raised has one mean fewer
-    body[0][1] = "— (5)"  # the default raised: no move from it to report
-    assert suite.seed_range_row(body, n_sets=2, draws=2)[1] == "—"
+    means[0][0] = nan  # the default raised: no move from it to report
+    assert suite.seed_range_row(means, draws=2)[1] == "—"
     # the draws skip the seed the default row ran with
     assert [o for _, o in suite.seed_variants(3, base=2)] == [{"seed": 0}, {"seed": 1}, {"seed": 3}]
     assert suite.seed_variants(1, base=2)[0][0].startswith("seed 2 → 0 ")

@@ -72,33 +72,34 @@ class DevSet:
     """Generator keyword arguments, as recorded in ``generator.json``."""
 
 
+def _remeshed(dataset: str, **extra) -> dict:
+    """Generator parameters of a dev set remeshed from ``dataset`` (``gen remesh-set``)."""
+    return {"dataset": dataset, **extra, "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
+            "iterations": 6}
+
+
+def _nonisometric(**extra) -> dict:
+    """Generator parameters of a non-isometric dev set (``gen nonisometric``)."""
+    return {"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
+            "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0, **extra}
+
+
 DEV_SETS = (
     DevSet("tosca_r5k", "pairs_subset.csv", dataset="tosca_r5k"),
     DevSet("scape", "pairs.csv", dataset="scape"),
     DevSet("tosca_hires", "pairs.csv", dataset="tosca_hires"),
-    DevSet("scape_r5k", "pairs_features.csv", generator="remesh",
-           params={"dataset": "scape", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
-                   "iterations": 6}),
+    DevSet("scape_r5k", "pairs_features.csv", generator="remesh", params=_remeshed("scape")),
     DevSet("tosca_r5k_r5k", "pairs.csv", generator="remesh",
-           params={"dataset": "tosca_r5k", "pairs_file": "pairs_subset.csv", "pairs": DEV_PAIRS,
-                   "vertices": DEV_VERTICES, "seed": DEV_SEED, "iterations": 6}),
-    DevSet("nonisometric", "pairs.csv", generator="nonisometric",
-           params={"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
-                   "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0}),
+           params=_remeshed("tosca_r5k", pairs_file="pairs_subset.csv")),
+    DevSet("nonisometric", "pairs.csv", generator="nonisometric", params=_nonisometric()),
     # the non-isometric family with both meshes of each pair remeshed on their own: no shared
     # connectivity, as between two characters modelled apart
-    DevSet("nonisometric_r5k", "pairs.csv", generator="remesh",
-           params={"dataset": "nonisometric", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES, "seed": DEV_SEED,
-                   "iterations": 6}),
+    DevSet("nonisometric_r5k", "pairs.csv", generator="remesh", params=_remeshed("nonisometric")),
     # gorilla-like against human-like bodies (the held-out non-isometric benchmark's kind of
     # pair), as generated and with both meshes remeshed on their own
     DevSet("nonisometric_ape", "pairs.csv", generator="nonisometric",
-           params={"pairs": DEV_PAIRS, "seed": DEV_SEED, "target_vertices": DEV_VERTICES, "templates": 3,
-                   "resolution": 128, "variation": 0.1, "jitter": 0.04, "amount": 1.0, "classes": ["biped"],
-                   "paired_families": {"biped": ["ape-like", "human-like"]}}),
-    DevSet("nonisometric_ape_r5k", "pairs.csv", generator="remesh",
-           params={"dataset": "nonisometric_ape", "pairs": DEV_PAIRS, "vertices": DEV_VERTICES,
-                   "seed": DEV_SEED, "iterations": 6}),
+           params=_nonisometric(classes=["biped"], paired_families={"biped": ["ape-like", "human-like"]})),
+    DevSet("nonisometric_ape_r5k", "pairs.csv", generator="remesh", params=_remeshed("nonisometric_ape")),
 )
 
 
@@ -254,21 +255,22 @@ def seed_variants(draws: int, base: int = 0) -> list[tuple[str, dict]]:
     return [(f"seed {base} → {s} (another draw of every sampling)", {"seed": s}) for s in seeds]
 
 
-def seed_range_row(body: list[list[str]], n_sets: int, draws: int) -> list[str]:
+def seed_range_row(means: list[list[float]], draws: int) -> list[str]:
     """The sensitivity table's last row: per set, the lowest and highest mean of the default
-    row (``body[0]``) and the ``draws`` seed rows (the last ``draws`` rows of ``body``), and the
-    largest move of a draw from the default in per cent. A draw that raised on some pair ("—")
-    is left out of its set's range; a default that did leaves no move to report ("—")."""
-    rows = [body[0]] + body[len(body) - draws:]
+    row (``means[0]``) and the ``draws`` seed rows (the last ``draws`` rows of ``means``: per
+    row, the mean direct error of each set, NaN where none ran), and the largest move of a draw
+    from the default in per cent. A draw that raised on every pair (NaN) is left out of its
+    set's range; a default that did leaves no move to report ("—")."""
+    rows = np.asarray([means[0]] + means[len(means) - draws:], dtype=np.float64)
     cells = []
-    for j in range(1, n_sets + 1):
-        values = [r[j].split()[0] for r in rows]
-        means = [float(v) for v in values if v != "—"]
-        if values[0] == "—" or len(means) < 2:
+    for col in rows.T:
+        base, others = col[0], col[1:][np.isfinite(col[1:])]
+        if not np.isfinite(base) or not len(others):
             cells.append("—")
             continue
-        move = max(abs(m / means[0] - 1) for m in means[1:]) if means[0] > 0 else float("nan")
-        cells.append(f"{min(means):.4g}–{max(means):.4g} (±{100 * move:.0f} %)")
+        move = np.max(np.abs(others / base - 1)) if base > 0 else float("nan")
+        low, high = min(base, others.min()), max(base, others.max())
+        cells.append(f"{low:.4g}–{high:.4g} (±{100 * move:.0f} %)")
     return [f"sampling noise: the default and {draws} other seeds, lowest–highest (largest move)"] + cells
 
 
@@ -384,20 +386,22 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
     draws = getattr(args, "seeds", 0) or 0
     if draws:
         only += f" --seeds {draws}"
-    body = []
+    body, means = [], []
     rows = [("default", {})] + sensitivity_variants(fields=fields) + seed_variants(draws, base=args.seed)
     for label, options in rows:
         log(f"== sensitivity: {label}")
-        row = [label]
+        row, set_means = [label], []
         for spec, folder in sets:
             results, has_sym = evaluate_pairs(folder, spec.pairs_file, ["geoshape"], limit=args.limit,
                                               landmarks=args.landmarks, seed=args.seed, options=options,
                                               spread=True, log=log)
             m = set_metrics(results, has_sym)
             row.append(_mean_failures(m["mean"], m["failures"]))
+            set_means.append(m["mean"])
         body.append(row)
+        means.append(set_means)
     if draws:
-        body.append(seed_range_row(body, len(sets), draws))
+        body.append(seed_range_row(means, draws))
     limit = _limit_and_section_flags(args)
     text = (f"### 3D correspondence — sensitivity of the geoshape defaults (issue #14)\n\n"
             f"Command: `geoshape bench correspondence --suite generalization --sensitivity{only}{limit} "

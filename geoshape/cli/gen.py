@@ -179,6 +179,20 @@ def _floats(option: str, text: str, count: int | None = None) -> list[float]:
     return values
 
 
+def _family_pairs(option: str, text: str) -> dict[str, tuple[str, str]]:
+    """``"biped=ape-like:human-like,…"`` → ``{"biped": ("ape-like", "human-like"), …}`` (names
+    checked by the generator)."""
+    from geoshape.errors import InvalidOptionError
+
+    out = {}
+    for item in filter(str.strip, text.split(",")):
+        cls, eq, names = item.partition("=")
+        if not eq or names.count(":") != 1:
+            raise InvalidOptionError(f"{option}: {item.strip()!r} is not CLASS=A:B")
+        out[cls.strip()] = tuple(n.strip() for n in names.split(":"))
+    return out
+
+
 def decimation_names(stem: str, ratios) -> list[str]:
     """Output stems ``<stem>_<pct>`` (pct = round(100 ratio), 3 digits); clashes refused."""
     from geoshape.errors import InvalidOptionError
@@ -425,17 +439,8 @@ def run_remesh_set(args: argparse.Namespace) -> int:
 def run_nonisometric(args: argparse.Namespace) -> int:
     from geoshape_datasets_gen.nonisometric import write_nonisometric_set
 
-    from geoshape.errors import InvalidOptionError
-
     classes = [c.strip() for c in args.classes.split(",") if c.strip()]
-    families = {}
-    for item in (args.families or "").split(","):
-        if not item.strip():
-            continue
-        cls, eq, names = item.partition("=")
-        if not eq or names.count(":") != 1:
-            raise InvalidOptionError(f"--families: {item.strip()!r} is not CLASS=A:B")
-        families[cls.strip()] = tuple(n.strip() for n in names.split(":"))
+    families = _family_pairs("--families", args.families or "")
     res = write_nonisometric_set(
         args.out, n_pairs=args.pairs, classes=classes, templates=args.templates, seed=args.seed,
         target_vertices=args.vertices, resolution=args.resolution, variation=args.variation,
