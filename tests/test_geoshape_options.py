@@ -298,9 +298,10 @@ def test_refinement_records_the_share_of_the_asked_orientation(monkeypatch):
 
 
 def test_the_adding_stages_say_when_they_fire():
-    """``repair_source`` and ``may_complete_symmetry`` are the one home of the firing conditions
+    """``repair_sources`` and ``may_complete_symmetry`` are the one home of the firing conditions
     the speculative full-resolution map is decided on: the repair re-solves the mirrored map
-    of lowest decision score; neither can fire without a map of the unwanted orientation."""
+    of lowest decision score (here also the most isometric one); neither can fire without a
+    map of the unwanted orientation."""
     def refined(energy, unwanted):
         return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy, distortion=0.1,
                          refined_orientation=-0.5 if unwanted else 0.5, unwanted=unwanted)
@@ -308,20 +309,38 @@ def test_the_adding_stages_say_when_they_fire():
     ctx = SimpleNamespace(lb_k=60)
     options = GeoshapeOptions()
     direct, worse_mirror, better_mirror = refined(0.01, False), refined(0.05, True), refined(0.02, True)
-    assert pipeline.repair_source(ctx, [direct, worse_mirror, better_mirror], options) is better_mirror
+    assert pipeline.repair_sources(ctx, [direct, worse_mirror, better_mirror], options) == [better_mirror]
     assert pipeline.may_complete_symmetry([direct, worse_mirror], options)
     for pool in ([], [direct]):
-        assert pipeline.repair_source(ctx, pool, options) is None
+        assert pipeline.repair_sources(ctx, pool, options) == []
         assert not pipeline.may_complete_symmetry(pool, options)
         assert pipeline.complete_symmetry(ctx, pool, options, {}) is None
         assert pipeline.orientation_repair(ctx, pool, options, {}) == []
     def changed(**kw):
         return dataclasses.replace(options, **kw)
 
-    assert pipeline.repair_source(ctx, [better_mirror], changed(orientation_repair=False)) is None
-    assert pipeline.repair_source(SimpleNamespace(lb_k=2), [better_mirror], options) is None  # < 3 eigenpairs
+    assert pipeline.repair_sources(ctx, [better_mirror], changed(orientation_repair=False)) == []
+    assert pipeline.repair_sources(SimpleNamespace(lb_k=2), [better_mirror], options) == []  # < 3 eigenpairs
     assert not pipeline.may_complete_symmetry([better_mirror], changed(prefer="reversing"))
     assert not pipeline.may_complete_symmetry([better_mirror], changed(symmetry_completion=False))
+
+
+def test_the_repair_also_takes_the_most_isometric_mirror_whatever_its_mirrored_share():
+    """The repair keeps its source's landmark images and replaces its orientation: besides
+    the mirrored map of best decision score (here a half-mirrored map, orientation -0.2, that
+    leads only through its share) it re-solves the most isometric one (a torso-only mirror,
+    orientation -0.7), whatever the order of the pool; one map when both are the same."""
+    def mirror(distortion, orientation):
+        c = Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=0.02, distortion=distortion)
+        return pipeline._store_refined(c, (c.refined_map, 0.02, orientation), GeoshapeOptions())
+
+    torso_only, half_mirrored = mirror(0.0083, -0.7), mirror(0.0094, -0.2)
+    assert torso_only.unwanted and half_mirrored.unwanted
+    assert pipeline.decision_score(half_mirrored) < pipeline.decision_score(torso_only)
+    ctx = SimpleNamespace(lb_k=60)
+    for pool in ([torso_only, half_mirrored], [half_mirrored, torso_only]):
+        assert pipeline.repair_sources(ctx, pool, GeoshapeOptions()) == [half_mirrored, torso_only]
+    assert pipeline.repair_sources(ctx, [torso_only, mirror(0.0094, -0.8)], GeoshapeOptions()) == [torso_only]
 
 
 @pytest.mark.slow

@@ -768,11 +768,12 @@ def descriptor_candidates(ctx: PairContext, options: GeoshapeOptions, timings: d
 
 def orientation_repair(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> list[Candidate]:
-    """Stage 4c: the refined map of unwanted orientation with the lowest :func:`decision_score`,
-    re-solved as a functional map with the orientation term and descriptors pinned by its
-    own ends (:func:`landmark_resolve`; a list of one); empty when no refined map has the
-    unwanted orientation (or ``orientation_repair`` is off, or fewer than 3 eigenpairs are
-    usable). :func:`polish_against_repair` may follow.
+    """Stage 4c: the maps of :func:`repair_sources` (of the unwanted orientation: the best by
+    :func:`decision_score` and the most isometric, one or two maps), each re-solved as a
+    functional map with the orientation term and descriptors pinned by its own ends
+    (:func:`landmark_resolve`); empty when no refined map has the unwanted orientation (or
+    ``orientation_repair`` is off, or fewer than 3 eigenpairs are usable).
+    :func:`polish_against_repair` may follow.
 
     Why: on a human body the spectral candidates can come out mirrored front↔back on the
     torso only, with the hands, feet and head in the right place (orientation score about
@@ -783,17 +784,17 @@ def orientation_repair(ctx: PairContext, refined: list[Candidate], options: Geos
     multiplication and orientation commutativity terms of :func:`descriptor_functional_map`,
     leave one consistent map: the orientation-preserving one through the same ends. On a
     plain left–right mirror the same problem gives the half-turn, which competes in the
-    decision like any candidate; the score's orientation share makes the least mirrored
-    map the one repaired. Cost: Dijkstra from the landmarks on both meshes, the operators
-    O(m kd (kd + L)), one kd² solve and one refinement from kd (kd = ``descriptor_k``).
+    decision like any candidate. Cost per repaired map: Dijkstra from the landmarks on both
+    meshes (mesh 1's once), the operators O(m kd (kd + L)), one kd² solve and one refinement
+    from kd (kd = ``descriptor_k``).
     A trial that also repaired the best descriptor map gained nothing (remeshed SCAPE,
     tosca_r5k, non-isometric dev sets) and cost one more solve.
     """
-    source = repair_source(ctx, refined, options)
-    if source is None:
+    sources = repair_sources(ctx, refined, options)
+    if not sources:
         return []
     t = time.perf_counter()
-    out = [landmark_resolve(ctx, source, options, "repaired")]
+    out = [landmark_resolve(ctx, source, options, "repaired") for source in sources]
     timings["orientation_repair"] = time.perf_counter() - t
     return out
 
@@ -852,14 +853,29 @@ def landmark_resolve(ctx: PairContext, source: Candidate, options: GeoshapeOptio
     return _refine_into(ctx, Candidate(name), init, options, on_refinement_rows=True, k_start=kd)
 
 
-def repair_source(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> Candidate | None:
-    """The refined map :func:`orientation_repair` re-solves (of unwanted orientation, lowest
-    :func:`decision_score`), or None when the repair does not run: off, fewer than 3 usable
-    eigenpairs, or no map of the unwanted orientation. O(len(refined))."""
+def repair_sources(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> list[Candidate]:
+    """The refined maps :func:`orientation_repair` re-solves, all of the unwanted orientation:
+    the one of lowest :func:`decision_score` and, when it is another map, the most isometric
+    one (lowest score without the orientation factor). Empty when the repair does not run:
+    off, fewer than 3 usable eigenpairs, or no map of the unwanted orientation.
+    O(len(refined)).
+
+    Why two: the repair keeps its source's images of the landmarks and replaces its
+    orientation, and the orientation share of the score reads both ways here. It prefers a
+    torso-only front↔back mirror (orientation about −0.7), whose repair is the direct map,
+    to a clean left↔right mirror (about −0.9), whose repair is the half-turn; but it also
+    prefers a map mirrored on part of the body (about −0.2) to a more isometric torso-only
+    mirror, and that repair is a half-turn too (remeshed SCAPE mesh000 → mesh047 at sampling
+    seed 1). The most isometric map alone lost the first case on the generated families.
+    Neither reading wins on every dev set (docs/correspondence3d.md), so both are re-solved
+    and the decision ranks the results like every other candidate.
+    """
     sources = [c for c in refined if c.unwanted]
     if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
-        return None
-    return min(sources, key=decision_score)
+        return []
+    best = min(sources, key=decision_score)
+    isometric = min(sources, key=lambda c: decision_score(c, (*DECISION_EXPONENTS[:2], 0.0)))
+    return [best] if isometric is best else [best, isometric]
 
 
 def may_complete_symmetry(refined: list[Candidate], options: GeoshapeOptions) -> bool:
@@ -1238,7 +1254,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     # them when they can run (each stage's own firing condition) and a child can be forked;
     # otherwise only the chosen map is computed, after the decision
     likely = decide(refined)
-    may_add = repair_source(ctx, refined, options) is not None or may_complete_symmetry(refined, options)
+    may_add = bool(repair_sources(ctx, refined, options)) or may_complete_symmetry(refined, options)
     final_likely = p2p = None
     if may_add and can_run_beside():
         final_likely = beside(_timed, full_resolution, ctx, likely, options)
