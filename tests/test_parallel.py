@@ -322,6 +322,28 @@ def test_a_stage_nested_in_a_running_beside_runs_here():
     assert can_run_beside()
 
 
+@pytest.mark.skipif(not _forkable_here(), reason="beside forks only on Linux with 2+ cores")
+@pytest.mark.usefixtures("no_other_threads")
+def test_a_child_that_answered_is_reaped_without_waiting_for_its_exit():
+    import os
+    import time
+
+    import geoshape.parallel
+    from geoshape.parallel import beside, can_run_beside
+
+    with beside(_pid_and_square, 5) as stage:
+        child, _ = stage.result()
+    assert child != os.getpid()
+    assert can_run_beside()  # an answered child no longer holds the second core
+    deadline = time.monotonic() + 30
+    while child in geoshape.parallel._EXITING and time.monotonic() < deadline:
+        time.sleep(0.01)
+        can_run_beside()  # reaps the children that have exited
+    assert child not in geoshape.parallel._EXITING
+    with pytest.raises(ChildProcessError):  # reaped: no zombie of that id is left
+        os.waitpid(child, os.WNOHANG)
+
+
 def test_beside_runs_here_when_stage_processes_are_off():
     import os
 

@@ -634,11 +634,20 @@ def _refine_into(ctx: PairContext, c: Candidate, init: np.ndarray, options: Geos
 def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
                         options: GeoshapeOptions) -> list[Candidate]:
     """:func:`_refine_into` of each candidate's coarse map, shared with a child process
-    (:func:`~geoshape.parallel.map_beside`: each takes the next candidate left); returns
-    ``candidates``."""
-    from geoshape.parallel import map_beside
+    (:func:`~geoshape.parallel.map_beside_after`: each takes the next candidate left); this
+    process also measures the ``distortion`` of its own maps as it goes
+    (:func:`measure_distortion`: its Dijkstra rows stay cached here, and it fills time that
+    would be spent waiting for the child's last map). The same values whoever computes
+    them. Returns ``candidates``."""
+    from geoshape.parallel import map_beside_after
 
-    refined = map_beside(lambda c: refine_map(ctx, c.coarse_map, options), candidates)
+    def refine_and_measure(c):
+        refined = refine_map(ctx, c.coarse_map, options)
+        measure_distortion(ctx, [_store_refined(c, refined, options)], options, {})
+        return refined
+
+    _, refined = map_beside_after(None, lambda c: refine_map(ctx, c.coarse_map, options), candidates,
+                                  here=refine_and_measure)
     for c, result in zip(candidates, refined, strict=True):
         _store_refined(c, result, options)
     return candidates
