@@ -733,22 +733,24 @@ class Beside:
                             "computing it here", self._reap())
                 self._run_here()
             else:
-                self._reap(wait=False)  # it answered: it only has to exit
+                self._release()
                 self._done = True
                 self._value, self._error = (value, None) if ok else (None, value)
         if self._error is not None:
             raise self._error
         return self._value
 
-    def _reap(self, wait: bool = True) -> int | None:
-        """Wait for the child; its wait status (None if something else reaped it). With
-        ``wait`` False, a child that sent its answer, the wait is left to :func:`_reap_exited`."""
+    def _release(self) -> None:
+        """The child answered and only has to exit: it no longer counts as running, and
+        :func:`_reap_exited` reaps it later without waiting."""
+        _EXITING.append(self._pid)
+        self._pid = None
+        _LIVE_CHILDREN[0] -= 1
+
+    def _reap(self) -> int | None:
+        """Wait for the child; its wait status (None if something else reaped it)."""
         pid, self._pid = self._pid, None
         _LIVE_CHILDREN[0] -= 1
-        if not wait:
-            _EXITING.append(pid)
-            _reap_exited()
-            return None
         try:
             return os.waitpid(pid, 0)[1]
         except ChildProcessError:  # SIGCHLD ignored, or another child watcher was first

@@ -648,7 +648,7 @@ def _refine_coarse_maps(ctx: PairContext, candidates: list[Candidate],
 
     _, refined = map_beside_after(None, lambda c: refine_map(ctx, c.coarse_map, options), candidates,
                                   here=refine_and_measure)
-    for c, result in zip(candidates, refined, strict=True):
+    for c, result in zip(candidates, refined, strict=True):  # the child's maps (this one's: again, same)
         _store_refined(c, result, options)
     return candidates
 
