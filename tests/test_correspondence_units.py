@@ -108,6 +108,27 @@ def test_soft_read_off_keeps_an_isometry_and_rejects_a_bad_temperature():
             soft_read_off(b1, b2, truth, V2, rings, bad)
 
 
+@pytest.mark.parametrize("n_candidates", [1, 4, 7, 64])
+def test_candidate_kernel_takes_the_first_nearest_candidate(n_candidates):
+    """The compiled search among each query's candidates (four summed side by side) agrees
+    with a NumPy argmin over the gathered rows, first of equals included (a repeated
+    candidate and an exact copy of a row tie)."""
+    from geoshape.geometry._kernels import nearest_among_candidates
+
+    rng = np.random.default_rng(3)
+    points = rng.standard_normal((50, 13))
+    points[7] = points[3]  # two rows at the same place: the first listed wins
+    queries = rng.standard_normal((40, 13))
+    queries[0] = points[3]
+    candidates = rng.integers(0, 50, (40, n_candidates))
+    candidates[0, :2] = [7, 3][:n_candidates]
+    squared = ((points[candidates] - queries[:, None, :]) ** 2).sum(axis=2)
+    expected = candidates[np.arange(40), squared.argmin(axis=1)]
+    assert np.array_equal(nearest_among_candidates(queries, points, candidates), expected)
+    if n_candidates >= 2:
+        assert nearest_among_candidates(queries, points, candidates)[0] == 7
+
+
 def planted_soft_case():
     """One query at 0 on a spectral line; candidates (spectral coordinate, position on a line):
     A (1.0, 0), B (−1.05, 2), C (1.1, 1), D (10, 5), all in the one row of a csr pattern. A is

@@ -103,25 +103,56 @@ def signed_match_costs(A, Bp):
 
 
 @numba.njit(cache=True, nogil=True)
+def _squared_distance(x, y):
+    """``Σ_a (y[a] − x[a])²``, summed in order of ``a``."""
+    s = 0.0
+    for a in range(len(x)):
+        d = y[a] - x[a]
+        s += d * d
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
 def nearest_among_candidates(queries, points, candidates):
     """For each row ``i`` of ``queries (q, k)``, the entry of ``candidates[i] (q, c)`` whose
     row of ``points (n, k)`` is nearest (the first of equals): ``(q,)`` int64.
 
-    O(q c k) time, no temporaries (NumPy would gather a ``(q, c, k)`` block first).
+    O(q c k) time, no temporaries (NumPy would gather a ``(q, c, k)`` block first). Four
+    candidates are summed side by side: each sum is a chain of dependent additions, and four
+    independent chains keep the adder busy (about twice as fast), while every sum is still
+    taken in order of the coordinates, so the distances are those of one candidate at a time.
     """
     q, k = queries.shape
     c = candidates.shape[1]
     out = np.empty(q, np.int64)
+    c4 = c - c % 4
     for i in range(q):
+        x = queries[i]
         best, arg = np.inf, candidates[i, 0]
-        for t in range(c):
-            j = candidates[i, t]
-            s = 0.0
+        for t in range(0, c4, 4):
+            j0, j1, j2, j3 = candidates[i, t : t + 4]
+            s0 = s1 = s2 = s3 = 0.0
             for a in range(k):
-                d = points[j, a] - queries[i, a]
-                s += d * d
+                d0 = points[j0, a] - x[a]
+                d1 = points[j1, a] - x[a]
+                d2 = points[j2, a] - x[a]
+                d3 = points[j3, a] - x[a]
+                s0 += d0 * d0
+                s1 += d1 * d1
+                s2 += d2 * d2
+                s3 += d3 * d3
+            if s0 < best:
+                best, arg = s0, j0
+            if s1 < best:
+                best, arg = s1, j1
+            if s2 < best:
+                best, arg = s2, j2
+            if s3 < best:
+                best, arg = s3, j3
+        for t in range(c4, c):
+            s = _squared_distance(x, points[candidates[i, t]])
             if s < best:
-                best, arg = s, j
+                best, arg = s, candidates[i, t]
         out[i] = arg
     return out
 
@@ -149,16 +180,28 @@ def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temp
     mean = np.empty(dim)
     for i in range(q):
         lo, hi = indptr[rows[i]], indptr[rows[i] + 1]
+        x = queries[i]
+        # squared distances, four candidates side by side (as nearest_among_candidates)
+        hi4 = hi - (hi - lo) % 4
+        for t in range(lo, hi4, 4):
+            j0, j1, j2, j3 = indices[t], indices[t + 1], indices[t + 2], indices[t + 3]
+            s0 = s1 = s2 = s3 = 0.0
+            for a in range(k):
+                d0 = points[j0, a] - x[a]
+                d1 = points[j1, a] - x[a]
+                d2 = points[j2, a] - x[a]
+                d3 = points[j3, a] - x[a]
+                s0 += d0 * d0
+                s1 += d1 * d1
+                s2 += d2 * d2
+                s3 += d3 * d3
+            s[t - lo], s[t + 1 - lo], s[t + 2 - lo], s[t + 3 - lo] = s0, s1, s2, s3
+        for t in range(hi4, hi):
+            s[t - lo] = _squared_distance(x, points[indices[t]])
         s_min, arg = np.inf, rows[i]
         for t in range(lo, hi):
-            j = indices[t]
-            acc = 0.0
-            for a in range(k):
-                d = points[j, a] - queries[i, a]
-                acc += d * d
-            s[t - lo] = acc
-            if acc < s_min:
-                s_min, arg = acc, j
+            if s[t - lo] < s_min:
+                s_min, arg = s[t - lo], indices[t]
         spread = temperature * s_min
         if not spread > 0.0:  # a query on a candidate, or a temperature too small to divide by
             out[i] = arg

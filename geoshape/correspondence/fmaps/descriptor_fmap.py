@@ -75,16 +75,17 @@ def _bilinear_forms(left: np.ndarray, right: np.ndarray, coefficients: np.ndarra
                     block: int = 2048) -> np.ndarray:
     """``out[d, i, j] = Σ_t left[t, i] coefficients[t, d] right[t, j]``, ``(d, k, k)``.
 
-    Per block of rows one BLAS product with the row-wise Kronecker products of ``left``
-    and ``right``: O(t k² d) flops, memory O(block k²).
+    Per block of rows one BLAS product ``leftᵀ (k × b) @ (b × d k2)`` with the columns of
+    ``right`` scaled by each coefficient: O(t k k2 d) flops, memory O(block d k2).
     """
     t, k = left.shape
     k2 = right.shape[1]
-    out = np.zeros((coefficients.shape[1], k * k2))
+    d = coefficients.shape[1]
+    out = np.zeros((k, d * k2))
     for s in range(0, t, block):
-        rows = (left[s : s + block, :, None] * right[s : s + block, None, :]).reshape(-1, k * k2)
-        out += coefficients[s : s + block].T @ rows
-    return out.reshape(-1, k, k2)
+        scaled = coefficients[s : s + block, :, None] * right[s : s + block, None, :]
+        out += left[s : s + block].T @ scaled.reshape(-1, d * k2)
+    return np.ascontiguousarray(out.reshape(k, d, k2).transpose(1, 0, 2))
 
 
 def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, descriptors: np.ndarray,
@@ -159,16 +160,25 @@ def _commutator_normal_matrix(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """``Σ_d MᵀM`` for the residuals ``C X_d − Y_d C`` as ``M vec(C)`` (column-major vec).
 
     ``M = Xᵀ⊗I − I⊗Y``, so ``MᵀM = (XXᵀ)⊗I − X⊗Y − Xᵀ⊗Yᵀ + I⊗(YᵀY)``; the sums over ``d``
-    of the Kronecker products are one ``(k², d) × (d, k²)`` product. O(d k⁴).
+    of the Kronecker products are one ``(k², d) × (d, k²)`` product. The blocks are written
+    into one ``(k, k, k, k)`` view of the result (row ``a k + c``, column ``b k + e``) in the
+    order ``((XXᵀ⊗I + I⊗YᵀY) − X⊗Y) − Xᵀ⊗Yᵀ``, without forming the Kronecker products.
+    O(d k⁴).
     """
     d, k, _ = X.shape
-    eye = np.eye(k)
     XXt = np.einsum("dab,dcb->ac", X, X)
     YtY = np.einsum("dba,dbc->ac", Y, Y)
-    # Σ_d kron(X_d, Y_d)[a k + c, b k + e] = Σ_d X_d[a, b] Y_d[c, e]
+    # Σ_d X_d[a, b] Y_d[c, e], indexed [a, b, c, e]
     cross = (X.reshape(d, k * k).T @ Y.reshape(d, k * k)).reshape(k, k, k, k)
-    kron_xy = cross.transpose(0, 2, 1, 3).reshape(k * k, k * k)
-    return np.kron(XXt, eye) + np.kron(eye, YtY) - kron_xy - kron_xy.T
+    H = np.zeros((k * k, k * k))
+    H4 = H.reshape(k, k, k, k)  # [a, c, b, e]
+    for i in range(k):
+        H4[:, i, :, i] = XXt  # (XXᵀ)⊗I: c = e
+    for i in range(k):
+        H4[i, :, i, :] += YtY  # I⊗(YᵀY): a = b
+    H4 -= cross.transpose(0, 2, 1, 3)  # X⊗Y
+    H4 -= cross.transpose(1, 3, 0, 2)  # its transpose, Xᵀ⊗Yᵀ: [a, c, b, e] = cross[b, a, e, c]
+    return H
 
 
 @dataclass(frozen=True)
