@@ -108,25 +108,56 @@ def test_soft_read_off_keeps_an_isometry_and_rejects_a_bad_temperature():
             soft_read_off(b1, b2, truth, V2, rings, bad)
 
 
-@pytest.mark.parametrize("n_candidates", [1, 4, 7, 64])
+@pytest.mark.parametrize("n_candidates", [1, 2, 4, 7, 64])
 def test_candidate_kernel_takes_the_first_nearest_candidate(n_candidates):
-    """The compiled search among each query's candidates (four summed side by side) agrees
-    with a NumPy argmin over the gathered rows, first of equals included (a repeated
-    candidate and an exact copy of a row tie)."""
+    """The compiled search among each query's candidates (four summed side by side, the rest
+    one by one) agrees with a NumPy argmin over the gathered rows, and of two candidates at
+    the same distance (two copies of one row) it takes the one listed first — within a
+    group of four, across two groups and among the leftover ones."""
     from geoshape.geometry._kernels import nearest_among_candidates
 
     rng = np.random.default_rng(3)
     points = rng.standard_normal((50, 13))
-    points[7] = points[3]  # two rows at the same place: the first listed wins
+    points[7] = points[3]  # two rows at the same place
     queries = rng.standard_normal((40, 13))
-    queries[0] = points[3]
-    candidates = rng.integers(0, 50, (40, n_candidates))
-    candidates[0, :2] = [7, 3][:n_candidates]
+    queries[:4] = points[3]
+    candidates = rng.integers(8, 50, (40, n_candidates))
+    ties = {0: (0, 1), 1: (2, 3), 2: (3, 4), 3: (4, 5)}  # slots of the two copies per query
+    for i, (a, b) in ties.items():
+        if b < n_candidates:
+            candidates[i, a], candidates[i, b] = (7, 3) if i % 2 else (3, 7)
     squared = ((points[candidates] - queries[:, None, :]) ** 2).sum(axis=2)
     expected = candidates[np.arange(40), squared.argmin(axis=1)]
-    assert np.array_equal(nearest_among_candidates(queries, points, candidates), expected)
-    if n_candidates >= 2:
-        assert nearest_among_candidates(queries, points, candidates)[0] == 7
+    found = nearest_among_candidates(queries, points, candidates)
+    assert np.array_equal(found, expected)
+    for i, (a, b) in ties.items():
+        if b < n_candidates:
+            assert found[i] == candidates[i, a]
+
+
+def test_soft_kernel_matches_a_plain_loop_on_rows_of_every_length():
+    """Rows of 0 to 9 candidates (no group of four, one, two with a rest): the compiled soft
+    read-off gives what a plain Python loop over the same formula gives."""
+    from geoshape.geometry._kernels import soft_nearest_in_rows
+
+    rng = np.random.default_rng(5)
+    points, positions = rng.standard_normal((30, 6)), rng.standard_normal((30, 3))
+    lengths = np.arange(10)
+    indptr = np.concatenate([[0], np.cumsum(lengths)])
+    indices = rng.integers(0, 30, indptr[-1])
+    queries, rows = rng.standard_normal((10, 6)), np.arange(10)
+
+    def reference(i):
+        cand = indices[indptr[i] : indptr[i + 1]]
+        if len(cand) == 0:
+            return rows[i]
+        s = ((points[cand] - queries[i]) ** 2).sum(axis=1)
+        w = np.exp(-(s - s.min()) / (0.5 * s.min()))
+        mean = (w[:, None] * positions[cand]).sum(axis=0) / w.sum()
+        return cand[((positions[cand] - mean) ** 2).sum(axis=1).argmin()]
+
+    found = soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, 0.5)
+    assert list(found) == [reference(i) for i in rows]
 
 
 def planted_soft_case():

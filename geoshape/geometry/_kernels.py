@@ -104,7 +104,7 @@ def signed_match_costs(A, Bp):
 
 @numba.njit(cache=True, nogil=True)
 def _squared_distance(x, y):
-    """``Σ_a (y[a] − x[a])²``, summed in order of ``a``."""
+    """``Σ_a (y[a] − x[a])²`` of ``x, y (k,)``, summed in order of ``a``: a float. O(k)."""
     s = 0.0
     for a in range(len(x)):
         d = y[a] - x[a]
@@ -118,19 +118,21 @@ def nearest_among_candidates(queries, points, candidates):
     row of ``points (n, k)`` is nearest (the first of equals): ``(q,)`` int64.
 
     O(q c k) time, no temporaries (NumPy would gather a ``(q, c, k)`` block first). Four
-    candidates are summed side by side: each sum is a chain of dependent additions, and four
-    independent chains keep the adder busy (about twice as fast), while every sum is still
-    taken in order of the coordinates, so the distances are those of one candidate at a time.
+    candidates are summed side by side, each in coordinate order: the same distances as one
+    candidate at a time.
     """
     q, k = queries.shape
     c = candidates.shape[1]
     out = np.empty(q, np.int64)
     c4 = c - c % 4
+    # each sum is a chain of dependent additions; four independent chains keep the adder
+    # busy (about twice as fast on the pipeline's read-offs, docs/correspondence3d.md)
     for i in range(q):
         x = queries[i]
         best, arg = np.inf, candidates[i, 0]
         for t in range(0, c4, 4):
-            j0, j1, j2, j3 = candidates[i, t : t + 4]
+            j0, j1 = candidates[i, t], candidates[i, t + 1]
+            j2, j3 = candidates[i, t + 2], candidates[i, t + 3]
             s0 = s1 = s2 = s3 = 0.0
             for a in range(k):
                 d0 = points[j0, a] - x[a]

@@ -73,7 +73,7 @@ def multiplication_operators(basis: LaplacianBasis, descriptors: np.ndarray, k: 
 
 def _bilinear_forms(left: np.ndarray, right: np.ndarray, coefficients: np.ndarray,
                     block: int = 2048) -> np.ndarray:
-    """``out[d, i, j] = Σ_t left[t, i] coefficients[t, d] right[t, j]``, ``(d, k, k)``.
+    """``out[d, i, j] = Σ_t left[t, i] coefficients[t, d] right[t, j]``, ``(d, k, k2)``.
 
     Per block of rows one BLAS product ``leftᵀ (k × b) @ (b × d k2)`` with the columns of
     ``right`` scaled by each coefficient: O(t k k2 d) flops, memory O(block d k2).
@@ -159,8 +159,8 @@ def resolvent_mask(evals1: np.ndarray, evals2: np.ndarray, gamma: float = 0.5) -
 def _commutator_normal_matrix(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """``Σ_d MᵀM`` for the residuals ``C X_d − Y_d C`` as ``M vec(C)`` (column-major vec).
 
-    ``M = Xᵀ⊗I − I⊗Y``, so ``MᵀM = (XXᵀ)⊗I − X⊗Y − Xᵀ⊗Yᵀ + I⊗(YᵀY)``; the sums over ``d``
-    of the Kronecker products are one ``(k², d) × (d, k²)`` product. The blocks are written
+    ``M = Xᵀ⊗I − I⊗Y``, so ``MᵀM = (XXᵀ)⊗I − X⊗Y − Xᵀ⊗Yᵀ + I⊗(YᵀY)``; the sum over ``d``
+    of ``X_d⊗Y_d`` is one ``(k², d) × (d, k²)`` product. The blocks are written
     into one ``(k, k, k, k)`` view of the result (row ``a k + c``, column ``b k + e``) in the
     order ``((XXᵀ⊗I + I⊗YᵀY) − X⊗Y) − Xᵀ⊗Yᵀ``, without forming the Kronecker products.
     O(d k⁴).
