@@ -113,6 +113,24 @@ def _squared_distance(x, y):
 
 
 @numba.njit(cache=True, nogil=True)
+def _four_squared_distances(x, points, j0, j1, j2, j3):
+    """:func:`_squared_distance` from ``x (k,)`` to rows ``j0 … j3`` of ``points (n, k)``,
+    the four sums side by side (each a chain of dependent additions in coordinate order;
+    four independent chains keep the adder busy): a 4-tuple of floats. O(k)."""
+    s0 = s1 = s2 = s3 = 0.0
+    for a in range(len(x)):
+        d0 = points[j0, a] - x[a]
+        d1 = points[j1, a] - x[a]
+        d2 = points[j2, a] - x[a]
+        d3 = points[j3, a] - x[a]
+        s0 += d0 * d0
+        s1 += d1 * d1
+        s2 += d2 * d2
+        s3 += d3 * d3
+    return s0, s1, s2, s3
+
+
+@numba.njit(cache=True, nogil=True)
 def nearest_among_candidates(queries, points, candidates):
     """For each row ``i`` of ``queries (q, k)``, the entry of ``candidates[i] (q, c)`` whose
     row of ``points (n, k)`` is nearest (the first of equals): ``(q,)`` int64.
@@ -121,28 +139,18 @@ def nearest_among_candidates(queries, points, candidates):
     candidates are summed side by side, each in coordinate order: the same distances as one
     candidate at a time.
     """
-    q, k = queries.shape
+    q = queries.shape[0]
     c = candidates.shape[1]
     out = np.empty(q, np.int64)
     c4 = c - c % 4
-    # each sum is a chain of dependent additions; four independent chains keep the adder
-    # busy (about twice as fast on the pipeline's read-offs, docs/correspondence3d.md)
+    # four chains side by side: about twice as fast on the pipeline's read-offs (docs/correspondence3d.md)
     for i in range(q):
         x = queries[i]
         best, arg = np.inf, candidates[i, 0]
         for t in range(0, c4, 4):
             j0, j1 = candidates[i, t], candidates[i, t + 1]
             j2, j3 = candidates[i, t + 2], candidates[i, t + 3]
-            s0 = s1 = s2 = s3 = 0.0
-            for a in range(k):
-                d0 = points[j0, a] - x[a]
-                d1 = points[j1, a] - x[a]
-                d2 = points[j2, a] - x[a]
-                d3 = points[j3, a] - x[a]
-                s0 += d0 * d0
-                s1 += d1 * d1
-                s2 += d2 * d2
-                s3 += d3 * d3
+            s0, s1, s2, s3 = _four_squared_distances(x, points, j0, j1, j2, j3)
             if s0 < best:
                 best, arg = s0, j0
             if s1 < best:
@@ -172,7 +180,7 @@ def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temp
 
     O(q c (k + d)) time for rows of c entries, O(c) memory per query.
     """
-    q, k = queries.shape
+    q = queries.shape[0]
     dim = positions.shape[1]
     out = np.empty(q, np.int64)
     longest = 0
@@ -183,20 +191,11 @@ def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temp
     for i in range(q):
         lo, hi = indptr[rows[i]], indptr[rows[i] + 1]
         x = queries[i]
-        # squared distances, four candidates side by side (as nearest_among_candidates)
+        # squared distances, four candidates side by side
         hi4 = hi - (hi - lo) % 4
         for t in range(lo, hi4, 4):
             j0, j1, j2, j3 = indices[t], indices[t + 1], indices[t + 2], indices[t + 3]
-            s0 = s1 = s2 = s3 = 0.0
-            for a in range(k):
-                d0 = points[j0, a] - x[a]
-                d1 = points[j1, a] - x[a]
-                d2 = points[j2, a] - x[a]
-                d3 = points[j3, a] - x[a]
-                s0 += d0 * d0
-                s1 += d1 * d1
-                s2 += d2 * d2
-                s3 += d3 * d3
+            s0, s1, s2, s3 = _four_squared_distances(x, points, j0, j1, j2, j3)
             s[t - lo], s[t + 1 - lo], s[t + 2 - lo], s[t + 3 - lo] = s0, s1, s2, s3
         for t in range(hi4, hi):
             s[t - lo] = _squared_distance(x, points[indices[t]])
