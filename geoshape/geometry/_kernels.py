@@ -103,31 +103,33 @@ def signed_match_costs(A, Bp):
 
 
 @numba.njit(cache=True, nogil=True)
-def _squared_distance(x, y):
-    """``Σ_a (y[a] − x[a])²`` of ``x, y (k,)``, summed in order of ``a``: a float. O(k)."""
-    s = 0.0
-    for a in range(len(x)):
-        d = y[a] - x[a]
-        s += d * d
-    return s
-
-
-@numba.njit(cache=True, nogil=True)
-def _four_squared_distances(x, points, j0, j1, j2, j3):
-    """:func:`_squared_distance` from ``x (k,)`` to rows ``j0 … j3`` of ``points (n, k)``,
-    the four sums side by side (each a chain of dependent additions in coordinate order;
-    four independent chains keep the adder busy): a 4-tuple of floats. O(k)."""
-    s0 = s1 = s2 = s3 = 0.0
-    for a in range(len(x)):
-        d0 = points[j0, a] - x[a]
-        d1 = points[j1, a] - x[a]
-        d2 = points[j2, a] - x[a]
-        d3 = points[j3, a] - x[a]
-        s0 += d0 * d0
-        s1 += d1 * d1
-        s2 += d2 * d2
-        s3 += d3 * d3
-    return s0, s1, s2, s3
+def _squared_distances(x, points, rows, out):
+    """``out[t] = Σ_a (points[rows[t], a] − x[a])²`` for ``x (k,)``, ``points (n, k)`` and the
+    ``len(rows)`` indices ``rows``, each summed in coordinate order. Four rows are summed
+    side by side: each sum is a chain of dependent additions, and four independent chains
+    keep the adder busy (about twice as fast on the pipeline's read-offs,
+    docs/correspondence3d.md) while every sum stays that of one row alone. O(len(rows) k)."""
+    m = len(rows)
+    m4 = m - m % 4
+    for t in range(0, m4, 4):
+        j0, j1, j2, j3 = rows[t], rows[t + 1], rows[t + 2], rows[t + 3]
+        s0 = s1 = s2 = s3 = 0.0
+        for a in range(len(x)):
+            d0 = points[j0, a] - x[a]
+            d1 = points[j1, a] - x[a]
+            d2 = points[j2, a] - x[a]
+            d3 = points[j3, a] - x[a]
+            s0 += d0 * d0
+            s1 += d1 * d1
+            s2 += d2 * d2
+            s3 += d3 * d3
+        out[t], out[t + 1], out[t + 2], out[t + 3] = s0, s1, s2, s3
+    for t in range(m4, m):
+        s = 0.0
+        for a in range(len(x)):
+            d = points[rows[t], a] - x[a]
+            s += d * d
+        out[t] = s
 
 
 @numba.njit(cache=True, nogil=True)
@@ -135,34 +137,18 @@ def nearest_among_candidates(queries, points, candidates):
     """For each row ``i`` of ``queries (q, k)``, the entry of ``candidates[i] (q, c)`` whose
     row of ``points (n, k)`` is nearest (the first of equals): ``(q,)`` int64.
 
-    O(q c k) time, no temporaries (NumPy would gather a ``(q, c, k)`` block first). Four
-    candidates are summed side by side, each in coordinate order: the same distances as one
-    candidate at a time.
+    O(q c k) time, O(c) memory (NumPy would gather a ``(q, c, k)`` block first); the
+    distances of :func:`_squared_distances`.
     """
-    q = queries.shape[0]
-    c = candidates.shape[1]
+    q, c = candidates.shape
     out = np.empty(q, np.int64)
-    c4 = c - c % 4
-    # four chains side by side: about twice as fast on the pipeline's read-offs (docs/correspondence3d.md)
+    s = np.empty(c)
     for i in range(q):
-        x = queries[i]
+        _squared_distances(queries[i], points, candidates[i], s)
         best, arg = np.inf, candidates[i, 0]
-        for t in range(0, c4, 4):
-            j0, j1 = candidates[i, t], candidates[i, t + 1]
-            j2, j3 = candidates[i, t + 2], candidates[i, t + 3]
-            s0, s1, s2, s3 = _four_squared_distances(x, points, j0, j1, j2, j3)
-            if s0 < best:
-                best, arg = s0, j0
-            if s1 < best:
-                best, arg = s1, j1
-            if s2 < best:
-                best, arg = s2, j2
-            if s3 < best:
-                best, arg = s3, j3
-        for t in range(c4, c):
-            s = _squared_distance(x, points[candidates[i, t]])
-            if s < best:
-                best, arg = s, candidates[i, t]
+        for t in range(c):
+            if s[t] < best:
+                best, arg = s[t], candidates[i, t]
         out[i] = arg
     return out
 
@@ -190,15 +176,7 @@ def soft_nearest_in_rows(queries, points, indptr, indices, rows, positions, temp
     mean = np.empty(dim)
     for i in range(q):
         lo, hi = indptr[rows[i]], indptr[rows[i] + 1]
-        x = queries[i]
-        # squared distances, four candidates side by side
-        hi4 = hi - (hi - lo) % 4
-        for t in range(lo, hi4, 4):
-            j0, j1, j2, j3 = indices[t], indices[t + 1], indices[t + 2], indices[t + 3]
-            s0, s1, s2, s3 = _four_squared_distances(x, points, j0, j1, j2, j3)
-            s[t - lo], s[t + 1 - lo], s[t + 2 - lo], s[t + 3 - lo] = s0, s1, s2, s3
-        for t in range(hi4, hi):
-            s[t - lo] = _squared_distance(x, points[indices[t]])
+        _squared_distances(queries[i], points, indices[lo:hi], s)
         s_min, arg = np.inf, rows[i]
         for t in range(lo, hi):
             if s[t - lo] < s_min:
