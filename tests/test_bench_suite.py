@@ -293,9 +293,10 @@ def test_decision_weight_variants_halve_double_and_drop_each_exponent():
 
     variants = suite.decision_weight_variants()
     assert variants[0][1] == tuple(DECISION_EXPONENTS) and variants[0][0].startswith("default")
-    changed = [[i for i in range(3) if e[i] != DECISION_EXPONENTS[i]] for _, e in variants[1:]]
-    assert all(len(c) == 1 for c in changed) and len(variants) == 1 + 3 * 3
-    for i in range(3):
+    n = len(DECISION_EXPONENTS)
+    changed = [[i for i in range(n) if e[i] != DECISION_EXPONENTS[i]] for _, e in variants[1:]]
+    assert all(len(c) == 1 for c in changed) and len(variants) == 1 + 3 * n
+    for i in range(n):
         assert sorted(e[i] for _, e in variants[1:] if e[i] != DECISION_EXPONENTS[i]) == [
             0.0, 0.5 * DECISION_EXPONENTS[i], 2.0 * DECISION_EXPONENTS[i]]
 
@@ -315,13 +316,13 @@ def test_redecided_errors_follow_the_exponents():
 
     pool = CandidatePool("p", [cand(0.10, 0.030, 0.9), cand(0.20, 0.010, 0.5), cand(0.01, 0.001, 0.1, True)],
                          [0.02, 0.30, 0.40], [0.02, 0.30, 0.03], 0, 0.02, 0.02)
-    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0033 < 0.004
-    assert suite.redecided_errors([pool], (1.0, 1.0, 0.0)).tolist() == [0.30]  # 0.002 < 0.003
-    assert suite.redecided_errors([pool], (1.0, 1.0, 2.0)).tolist() == [0.02]  # 0.0037 < 0.008
-    assert suite.redecided_errors([pool], (1.0, 0.0, 0.0)).tolist() == [0.02]  # distortion alone
-    assert suite.redecided_errors([pool], (1.0, 2.0, 0.0)).tolist() == [0.30]  # 2e-5 < 9e-5
+    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0033 < 0.004
+    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 0.0)).tolist() == [0.30]  # 0.002 < 0.003
+    assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 2.0)).tolist() == [0.02]  # 0.0037 < 0.008
+    assert suite.redecided_errors([pool], (1.0, 0.0, 1.0, 0.0)).tolist() == [0.02]  # distortion alone
+    assert suite.redecided_errors([pool], (1.0, 2.0, 1.0, 0.0)).tolist() == [0.30]  # 2e-5 < 9e-5
     crashed = CandidatePool("q", [], [], [], error="bad mesh")
-    errors = suite.redecided_errors([pool, crashed], (1.0, 1.0, 0.0))
+    errors = suite.redecided_errors([pool, crashed], (1.0, 1.0, 1.0, 0.0))
     assert errors[0] == 0.30 and np.isnan(errors[1])
     assert suite.weights_cell(errors) == "0.3 (2)"  # one pair above 0.1, one that raised
     assert suite.weights_cell(np.array([np.nan])) == "— (1)"
@@ -335,7 +336,7 @@ def test_decision_weights_run_writes_its_own_section(tmp_path, monkeypatch):
     assert f"<!-- BEGIN {suite.SECTION} -->" not in text
     assert "retakes the pipeline's own choice on 1 of 1 pairs" in text
     rows = [line for line in text.splitlines() if line.startswith("| ") and "(" in line.split("|")[2]]
-    assert len(rows) == 1 + 9 + 1 and rows[-1].startswith("| best candidate in the pool")
+    assert len(rows) == 1 + 3 * 4 + 1 and rows[-1].startswith("| best candidate in the pool")
 
 
 @pytest.mark.parametrize("flags, message", [

@@ -166,6 +166,25 @@ def test_decision_prefers_the_wanted_orientation_then_the_lowest_score():
     assert pipeline.decision_score(kept) == pytest.approx(0.0025 / 0.9)
 
 
+def test_a_half_turn_as_isometric_as_the_right_map_loses_on_curvature():
+    """Front↔back composed with left↔right keeps the orientation and, on a body, nearly the
+    geodesics: here it is even a little less distorted and smoother than the right map, and
+    only the curvature disagreement (toes on heels) tells them apart. Without that factor
+    (exponent 0) the half-turn would win; a map whose curvature was not measured counts 1."""
+    def refined(distortion, energy, curvature):
+        return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
+                         refined_orientation=0.7, unwanted=False, orientation_share=0.85,
+                         distortion=distortion, curvature_disagreement=curvature)
+
+    right, half_turn = refined(0.0100, 0.030, 0.05), refined(0.0090, 0.028, 0.08)
+    assert pipeline.decide([half_turn, right]) is right
+    assert pipeline.decision_score(right) == pytest.approx(0.0100 * 0.030 * 0.05 / 0.85)
+    assert pipeline.decide([half_turn, right], exponents=(1.0, 1.0, 0.0, 1.0)) is half_turn
+    assert right.summary()["curvature_disagreement"] == 0.05
+    unmeasured = dataclasses.replace(right, curvature_disagreement=None)
+    assert pipeline.decision_score(unmeasured) == pytest.approx(0.0100 * 0.030 / 0.85)
+
+
 def test_the_landmark_twins_are_decided_by_local_rigidity():
     """The repaired and the polished map come out of one landmark solve that fits geodesic
     distances: between the two, the more rigid wins whatever their scores; elsewhere

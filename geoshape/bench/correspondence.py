@@ -64,8 +64,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "decision scores and its errors (print only)")
     p.add_argument("--decision-weights", action="store_true",
                    help="with --suite: instead of the suite table, the mean error and failures per set when "
-                   "the decision objective's exponents (distortion, energy, orientation share) are halved, "
-                   "doubled or set to 0, re-deciding on each pair's candidates (its own RESULTS section)")
+                   "the decision objective's exponents (distortion, energy, curvature disagreement, "
+                   "orientation share) are halved, doubled or set to 0, re-deciding on each pair's "
+                   "candidates (its own RESULTS section)")
     p.add_argument("--fields", default=None,
                    help="with --sensitivity: comma-separated geoshape options to vary (default: every "
                    "numeric default of the sensitivity table; none: only the --seeds rows)")
@@ -342,18 +343,19 @@ def candidate_report(folder, pairs_file: str, names: list[str], *, landmarks: in
             continue
         log(f"== {pool.name}: final map {pool.final_error:.4f} direct, "
             f"{pool.final_error_sym:.4f} symmetry-aware")
-        log("  chosen | source | error | error (sym-aware) | distortion | energy | orientation | "
-            "wanted | decision score | rigidity")
+        log("  chosen | source | error | error (sym-aware) | distortion | energy | curvature | "
+            "orientation | wanted | decision score | rigidity")
         for i, c in enumerate(pool.candidates):
             row = {"pair": pool.name, "source": c.source, "error": pool.errors[i],
                    "error_sym": pool.errors_sym[i], "distortion": c.distortion,
-                   "energy": c.refined_energy, "orientation": c.refined_orientation,
+                   "energy": c.refined_energy, "curvature": c.curvature_disagreement,
+                   "orientation": c.refined_orientation,
                    "wanted": not c.unwanted, "decision_score": decision_score(c),
                    "rigidity": c.rigidity, "chosen": i == pool.chosen_index}
             rows.append(row)
             mark = "*" if row["chosen"] else " "
             log(f"  {mark} | {c.source} | {row['error']:.4f} | {row['error_sym']:.4f} | {c.distortion:.4f} | "
-                f"{c.refined_energy:.4f} | {c.refined_orientation:+.3f} | "
+                f"{c.refined_energy:.4f} | {c.curvature_disagreement:.4f} | {c.refined_orientation:+.3f} | "
                 f"{'yes' if row['wanted'] else 'no'} | {row['decision_score']:.6f} | "
                 f"{'—' if c.rigidity is None else f'{c.rigidity:.4f}'}")
     return rows

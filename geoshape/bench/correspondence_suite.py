@@ -418,14 +418,14 @@ def _run_sensitivity(args, sets, log, fields=SENSITIVITY_FIELDS) -> int:
     return 0
 
 
-def decision_weight_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, tuple[float, float, float]]]:
+def decision_weight_variants(factors=SENSITIVITY_FACTORS) -> list[tuple[str, tuple[float, ...]]]:
     """``(label, exponents)``: the exponents of :func:`~geoshape.correspondence.pipeline.decision_score`
-    (distortion, energy, orientation share) as they are, then each one ×``factors`` and left out
-    (exponent 0), the others kept."""
-    from geoshape.correspondence.pipeline import DECISION_EXPONENTS
+    (``DECISION_FACTORS``: distortion, energy, curvature disagreement, orientation share) as
+    they are, then each one ×``factors`` and left out (exponent 0), the others kept."""
+    from geoshape.correspondence.pipeline import DECISION_EXPONENTS, DECISION_FACTORS
 
     out = [("default " + str(tuple(float(x) for x in DECISION_EXPONENTS)), tuple(DECISION_EXPONENTS))]
-    for i, name in enumerate(("distortion", "energy", "orientation share")):
+    for i, name in enumerate(DECISION_FACTORS):
         for f in (*factors, 0.0):
             e = list(DECISION_EXPONENTS)
             e[i] = DECISION_EXPONENTS[i] * f
@@ -494,8 +494,9 @@ def _run_decision_weights(args, sets, log) -> int:
             f"Command: `geoshape bench correspondence --suite generalization --decision-weights{only}{limit} "
             f"--landmarks {args.landmarks}`. Sets: {_set_list(sets)}{_spread_note(args.limit)}. One run of "
             f"the geoshape method per pair keeps every refined candidate; the decision (wanted orientation "
-            f"first, then the lowest distortion^a × energy^b ÷ orientation share^c; default (a, b, c) = "
-            f"({exps})) is re-taken with each exponent {factors} and 0, the others at their default. Cells: "
+            f"first, then the lowest distortion^a × energy^b × curvature disagreement^h ÷ orientation "
+            f"share^c; default (a, b, h, c) = ({exps})) is re-taken with each exponent {factors} and 0, "
+            f"the others at their default. Cells: "
             f"mean direct error of the chosen *refined* map (before the full-resolution stage; the suite "
             f"scores the final maps) and, in brackets, failures (pairs above {FAILURE_ERROR}, and pairs on "
             f"which the method raised: {crashed}). The default row retakes the pipeline's own choice on "

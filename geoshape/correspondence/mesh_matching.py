@@ -177,6 +177,20 @@ class PreparedMesh:
         return self.cached(("descriptor_operators", k, lb_k), lambda: descriptor_operators(
             self.V, self.F, self.laplacian(lb_k), k=k))
 
+    def curvature_field(self, k: int):
+        """``(n,)`` unit-free mean curvature (:func:`~geoshape.geometry.curvature.mean_curvature`)
+        projected onto the first ``k`` Laplace–Beltrami eigenfunctions: the curvature at the
+        resolution of a ``k``-eigenpair functional map, free of per-vertex noise. Cached;
+        O(m) + O(n k) after the basis."""
+        from geoshape.geometry.curvature import mean_curvature
+
+        def field():
+            basis = self.laplacian(k)
+            H = mean_curvature(self.V, self.F)
+            return basis.evecs @ (basis.evecs.T @ (basis.mass * H))
+
+        return self.cached(("curvature_field", k), field)
+
     def samples(self, n: int, seed: int = 0):
         """``n`` farthest-point samples in Euclidean space (O(n_vertices · n)), cached."""
         from geoshape.geometry.sampling import euclidean_farthest_point_sampling

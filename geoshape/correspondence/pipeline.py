@@ -259,6 +259,9 @@ class Candidate:
     distortion: float | None = None
     """Geodesic distortion of the refined map: its mean normalised geodesic distortion to the
     power ``distortion_power`` (:func:`geodesic_distortion`; default 2, the stress)."""
+    curvature_disagreement: float | None = None
+    """:func:`curvature_disagreement` of the refined map (0: it carries mesh 1's mean curvature
+    field onto mesh 2's exactly; 1: no better than pairing samples at random)."""
     rigidity: float | None = None
     """:func:`local_rigidity` of the refined map (0: a rotation and uniform scaling on every
     patch), measured for the repaired and polished maps only (:func:`measure_rigidity`)."""
@@ -288,6 +291,8 @@ class Candidate:
             out.update(refined_energy=self.refined_energy, refined_orientation=self.refined_orientation)
         if self.distortion is not None:
             out["distortion"] = self.distortion
+        if self.curvature_disagreement is not None:
+            out["curvature_disagreement"] = self.curvature_disagreement
         if self.rigidity is not None:
             out["rigidity"] = self.rigidity
         return out
@@ -411,7 +416,7 @@ def final_basis_size(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOption
 
 
 #: the per-mesh cache entries a stage run :func:`~geoshape.parallel.beside` the others hands back
-_SHARED_CACHES = ("laplacian", "embedding", "descriptor_operators")
+_SHARED_CACHES = ("laplacian", "embedding", "descriptor_operators", "curvature_field")
 
 
 def _with_new_caches(fn, meshes: tuple, *args):
@@ -435,12 +440,14 @@ def _alignment_embedding(m: PreparedMesh, options: GeoshapeOptions):
     return m.embedding(options.k, scaling=EMBEDDING_SCALING, n_samples=options.n_samples, seed=options.seed)
 
 
-def _eigenpairs_and_embedding(m: PreparedMesh, k: int, options: GeoshapeOptions) -> float:
-    """``m``'s ``k`` Laplace–Beltrami eigenpairs and :func:`_alignment_embedding` (both
-    cached); returns the seconds taken."""
+def _eigenpairs_and_embedding(m: PreparedMesh, k: int, options: GeoshapeOptions, lb_k: int) -> float:
+    """``m``'s ``k`` Laplace–Beltrami eigenpairs, :func:`_alignment_embedding` and its curvature
+    field at ``lb_k`` eigenpairs (:func:`measure_distortion` reads it; all cached); returns the
+    seconds taken."""
     t = time.perf_counter()
     m.laplacian(k)
     _alignment_embedding(m, options)
+    m.curvature_field(lb_k)
     return time.perf_counter() - t
 
 
@@ -883,7 +890,7 @@ def repair_sources(ctx: PairContext, refined: list[Candidate], options: Geoshape
     if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
         return []
     best = min(sources, key=decision_score)
-    isometric = min(sources, key=lambda c: decision_score(c, (*DECISION_EXPONENTS[:2], 0.0)))
+    isometric = min(sources, key=lambda c: decision_score(c, (*DECISION_EXPONENTS[:3], 0.0)))
     return [best] if isometric is best else [best, isometric]
 
 
@@ -934,7 +941,8 @@ def complete_symmetry(ctx: PairContext, refined: list[Candidate], options: Geosh
                                                               orientation_repair=False))
     completed = None
     if mirror.details["orientation"] < 0:  # mesh 2 does have an orientation-reversing self-map
-        completed = dataclasses.replace(best, symmetry_completed=True, distortion=None, rigidity=None)
+        completed = dataclasses.replace(best, symmetry_completed=True, distortion=None,
+                                        curvature_disagreement=None, rigidity=None)
         _refine_into(ctx, completed, mirror.p2p_12[best.refined_map], options, on_refinement_rows=True)
     timings["symmetry"] = time.perf_counter() - t
     return completed
@@ -1029,21 +1037,58 @@ def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.n
 
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
-    """Fill ``distortion`` of every refined candidate that lacks it: :func:`geodesic_distortion`
-    with power ``distortion_power`` (2: the stress) on the first
+    """Fill the two distortions of every refined candidate that lacks them: ``distortion``,
+    :func:`geodesic_distortion` with power ``distortion_power`` (2: the stress) on the first
     ``distortion_samples`` screening samples of mesh 1 (large meshes: refinement samples,
-    with which the maps are aligned)."""
+    with which the maps are aligned), and ``curvature_disagreement``
+    (:func:`curvature_disagreement` on every refinement sample)."""
     todo = [c for c in candidates if c.distortion is None]
-    if not todo:
-        return
-    t = time.perf_counter()
-    rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
-    images = [c.refined_map[at] for c in todo]
-    distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
-                                      power=options.distortion_power)
-    for c, d in zip(todo, distortions, strict=True):
-        c.distortion = d
-    timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
+    if todo:
+        t = time.perf_counter()
+        rows, at = distortion_rows(ctx, ctx.s1 if ctx.large else ctx.c1, options.distortion_samples)
+        images = [c.refined_map[at] for c in todo]
+        distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *images, within=ctx.s2,
+                                          power=options.distortion_power)
+        for c, d in zip(todo, distortions, strict=True):
+            c.distortion = d
+        timings["distortion"] = timings.get("distortion", 0.0) + time.perf_counter() - t
+    todo = [c for c in candidates if c.curvature_disagreement is None]
+    if todo:
+        t = time.perf_counter()
+        h1 = ctx.m1.curvature_field(ctx.lb_k)[ctx.s1]
+        h2 = ctx.m2.curvature_field(ctx.lb_k)
+        at = slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+        for c in todo:
+            c.curvature_disagreement = curvature_disagreement(h1, h2[c.refined_map[at]], h2[ctx.s2])
+        timings["curvature"] = timings.get("curvature", 0.0) + time.perf_counter() - t
+
+
+def curvature_disagreement(h1: np.ndarray, h2_images: np.ndarray, h2: np.ndarray) -> float:
+    """How far a map is from carrying one curvature field onto another: the mean squared
+    difference between ``h1 (s,)`` (mesh 1's field at sample points) and ``h2_images (s,)``
+    (mesh 2's field at their images), divided by its value for random pairs of those samples
+    and ``h2 (t,)`` (mesh 2's field at its own samples). 0 for a map that carries the field
+    exactly, about 1 for one no better than chance; no unit (fields of different scale give
+    the same ranking of maps). O(s + t).
+
+    Why: a human body's front↔back reflection is nearly an isometry (torso, limbs and head are
+    close to tubes), and composed with the left↔right one it keeps the orientation, so
+    neither the geodesic stress nor the orientation share tells that half-turn from the right
+    map. Mean curvature does: toes against heels, the face against the back of the head, the
+    front of a bent knee against its hollow. It is extrinsic but changes only at the joints
+    when a body bends; compared at the resolution of the maps (``lb_k`` eigenfunctions,
+    :meth:`~geoshape.correspondence.mesh_matching.PreparedMesh.curvature_field`) it is free of
+    the per-vertex noise of remeshing.
+
+    >>> h = np.array([0.0, 1.0, 2.0, 3.0])
+    >>> curvature_disagreement(h, h, h)
+    0.0
+    >>> curvature_disagreement(h, h[::-1], h)  # a map that reverses the field: worse than chance
+    2.0
+    """
+    h1, h2_images, h2 = (np.asarray(x, dtype=np.float64) for x in (h1, h2_images, h2))
+    chance = np.mean(h1**2) + np.mean(h2**2) - 2.0 * np.mean(h1) * np.mean(h2)
+    return float(np.mean((h1 - h2_images) ** 2) / max(chance, 1e-300))
 
 
 def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float:
@@ -1113,32 +1158,41 @@ def measure_rigidity(ctx: PairContext, candidates: list[Candidate], options: Geo
     timings["rigidity"] = timings.get("rigidity", 0.0) + time.perf_counter() - t
 
 
-#: Exponents of (distortion, energy, orientation share) in :func:`decision_score`: equal
-#: weights in log space. ``geoshape bench correspondence --suite generalization
-#: --decision-weights`` measures each one halved, doubled and left out on the dev sets.
-DECISION_EXPONENTS = (1.0, 1.0, 1.0)
+#: Exponents of (distortion, energy, curvature disagreement, orientation share) in
+#: :func:`decision_score`: equal weights in log space. ``geoshape bench correspondence --suite
+#: generalization --decision-weights`` measures each one halved, doubled and left out on the dev sets.
+DECISION_EXPONENTS = (1.0, 1.0, 1.0, 1.0)
+#: the factors of :func:`decision_score`, in the order of ``DECISION_EXPONENTS``
+DECISION_FACTORS = ("distortion", "energy", "curvature disagreement", "orientation share")
 
 
-def decision_score(c: Candidate, exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> float:
+def decision_score(c: Candidate, exponents: tuple[float, ...] = DECISION_EXPONENTS) -> float:
     """The one objective every refined candidate is ranked by (lower is better): geodesic
-    stress × functional map energy ÷ the share of the surface whose orientation the map
-    keeps as asked (``orientation_share``), each factor raised to its ``exponents`` entry.
+    stress × functional map energy × curvature disagreement ÷ the share of the surface whose
+    orientation the map keeps as asked (``orientation_share``), each factor raised to its
+    ``exponents`` entry (``DECISION_FACTORS`` order).
 
-    Every factor is unit-free and at its best for an orientation-keeping isometry (0, 0 and
-    1): the stress (``Candidate.distortion``) compares normalised geodesic distances on
-    sample pairs (sees which parts go where), the energy is the distance of the refined functional map from
-    orthonormality (sees the whole spectrum, e.g. a front↔back mirror that distortion alone
-    can miss), the share sees a map mirrored on part of the surface (orientation near 0)
-    that the sign test of :func:`decide` lets through. A product weighs a relative change of
-    any factor the same (equal weights in log space), so there is no weight to set.
+    Every factor is unit-free and at its best for an orientation-keeping isometry that keeps
+    the shape of each part (0, 0, 0 and 1): the stress (``Candidate.distortion``) compares
+    normalised geodesic distances on sample pairs (sees which parts go where), the energy is
+    the distance of the refined functional map from orthonormality (sees the whole spectrum),
+    the curvature disagreement (:func:`curvature_disagreement`) sees front from back, which
+    on a body neither of the first two nor the orientation can (a front↔back mirror composed
+    with the left↔right one is an orientation-keeping near-isometry), and the share sees a
+    map mirrored on part of the surface (orientation near 0) that the sign test of
+    :func:`decide` lets through. A product weighs a relative change of any factor the same
+    (equal weights in log space), so there is no weight to set, and the scale of a factor
+    (the chance level dividing the curvature disagreement, say) does not change the ranking.
+    A candidate whose curvature disagreement was not measured counts 1 for it.
     """
-    a, b, s = exponents
+    a, b, h, s = exponents
     share = 1.0 if c.orientation_share is None else max(c.orientation_share, 1e-6)
-    return c.distortion ** a * c.refined_energy ** b / share ** s
+    curvature = 1.0 if c.curvature_disagreement is None else max(c.curvature_disagreement, 1e-12)
+    return c.distortion ** a * c.refined_energy ** b * curvature ** h / share ** s
 
 
 def decide(refined: list[Candidate], *,
-           exponents: tuple[float, float, float] = DECISION_EXPONENTS) -> Candidate:
+           exponents: tuple[float, ...] = DECISION_EXPONENTS) -> Candidate:
     """Stage 5: the candidate of lowest :func:`decision_score` (with ``exponents``) among those
     of the wanted orientation (the sign of the orientation score, no threshold), or among all
     when none is. A map must not win by being smooth and mirrored. O(len(refined)).
@@ -1242,7 +1296,8 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
     k = final_basis_size(m1, m2, options)
     # a child only for an eigen-solve still to do, on a mesh other than mesh 2 (self-matches)
     solve_beside = m1 is not m2 and not m1.has_laplacian(k)
-    with beside(_with_new_caches, _eigenpairs_and_embedding, (m1,), m1, k, options,
+    lb_k = refined_basis_size(m1, m2, options)
+    with beside(_with_new_caches, _eigenpairs_and_embedding, (m1,), m1, k, options, lb_k,
                 fork=solve_beside) as basis1:
         t = time.perf_counter()
         m2.laplacian(k)
@@ -1250,6 +1305,9 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         t = time.perf_counter()
         _alignment_embedding(m2, options)
         timings["embedding"] = time.perf_counter() - t
+        t = time.perf_counter()
+        m2.curvature_field(lb_k)
+        timings["curvature"] = time.perf_counter() - t
         timings["eigenpairs and embedding (beside)"] = _adopted(basis1.result(), (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)
