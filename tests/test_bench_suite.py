@@ -309,18 +309,24 @@ def test_redecided_errors_follow_the_exponents():
     from geoshape.bench.correspondence import CandidatePool
     from geoshape.correspondence.pipeline import Candidate
 
-    def cand(distortion, energy, share, unwanted=False):
+    def cand(distortion, energy, share, unwanted=False, curvature=0.1):
         return Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=energy,
                          distortion=distortion, refined_orientation=2 * share - 1,
-                         unwanted=unwanted, orientation_share=share)
+                         unwanted=unwanted, orientation_share=share, curvature_disagreement=curvature)
 
     pool = CandidatePool("p", [cand(0.10, 0.030, 0.9), cand(0.20, 0.010, 0.5), cand(0.01, 0.001, 0.1, True)],
                          [0.02, 0.30, 0.40], [0.02, 0.30, 0.03], 0, 0.02, 0.02)
     assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 1.0)).tolist() == [0.02]  # 0.0033 < 0.004
     assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 0.0)).tolist() == [0.30]  # 0.002 < 0.003
     assert suite.redecided_errors([pool], (1.0, 1.0, 1.0, 2.0)).tolist() == [0.02]  # 0.0037 < 0.008
-    assert suite.redecided_errors([pool], (1.0, 0.0, 1.0, 0.0)).tolist() == [0.02]  # distortion alone
+    assert suite.redecided_errors([pool], (1.0, 0.0, 1.0, 0.0)).tolist() == [0.02]  # distortion
     assert suite.redecided_errors([pool], (1.0, 2.0, 1.0, 0.0)).tolist() == [0.30]  # 2e-5 < 9e-5
+    # the curvature exponent moves the decision when the candidates' curvatures differ
+    bent = CandidatePool("b", [cand(0.10, 0.030, 0.9, curvature=0.2), cand(0.10, 0.036, 0.9, curvature=0.1)],
+                         [0.30, 0.02], [0.30, 0.02], 1, 0.02, 0.02)
+    assert suite.redecided_errors([bent], (1.0, 1.0, 1.0, 1.0)).tolist() == [0.02]  # 4.0e-4 < 6.7e-4
+    assert suite.redecided_errors([bent], (1.0, 1.0, 0.0, 1.0)).tolist() == [0.30]  # 3.3e-3 < 4.0e-3
+    assert suite.redecided_errors([bent], (1.0, 1.0, 0.5, 1.0)).tolist() == [0.02]
     crashed = CandidatePool("q", [], [], [], error="bad mesh")
     errors = suite.redecided_errors([pool, crashed], (1.0, 1.0, 1.0, 0.0))
     assert errors[0] == 0.30 and np.isnan(errors[1])

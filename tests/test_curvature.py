@@ -42,7 +42,7 @@ def test_winding_does_not_change_the_sign():
 
 def test_a_torus_is_convex_outside_and_saddle_shaped_inside():
     """H = (R + 2 r cos v) / (2 r (R + r cos v)): 5/8 on the outer equator, 1/4 on the inner
-    one for R = 3, r = 1; with R = 1.5 the inner equator is a saddle (H = −1/2 ÷ ... < 0)."""
+    one for R = 3, r = 1; with R = 1.5 the inner equator is a saddle, H = −1/2."""
     V, F = torus(3.0, 1.0)
     H = mean_curvature(V, F).reshape(120, 48) / np.sqrt(4 * np.pi**2 * 3.0)
     assert H[:, 0].mean() == pytest.approx(5 / 8, rel=0.01)
@@ -75,3 +75,55 @@ def test_curvature_disagreement_sees_a_half_turn_but_not_a_mirror():
     # the field is cached per basis size, and has no unit: scaling the mesh changes nothing
     assert m.curvature_field(40) is h
     assert np.allclose(PreparedMesh(V * 7.0, F).curvature_field(40), h, atol=1e-6 * np.abs(h).max())
+
+
+def _bumped_sphere():
+    V, F = icosphere(4)
+    return V * (1 + 0.4 * np.exp(-((V[:, 0] - 1) ** 2 + V[:, 1] ** 2 + V[:, 2] ** 2) / 0.1))[:, None], F
+
+
+@pytest.mark.parametrize("large", [False, True])
+def test_measure_distortion_fills_the_curvature_disagreement_on_samples(large):
+    """The pipeline reads the field at mesh 1's refinement samples and at their images (a
+    per-vertex map, or in large-mesh mode a map aligned with the samples): the same value
+    either way, 0 for the identity, more for the half-turn; a candidate already measured is
+    left alone."""
+    from types import SimpleNamespace
+
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.correspondence.pipeline import Candidate, GeoshapeOptions, measure_distortion
+    from geoshape.geometry.knn import nearest
+
+    V, F = _bumped_sphere()
+    m = PreparedMesh(V, F)
+    samples = m.samples(400)
+    ctx = SimpleNamespace(m1=m, m2=m, s1=samples, s2=samples, lb_k=40, large=large)
+    half_turn_ids = nearest(V[samples], V * [-1.0, -1.0, 1.0])[1]
+    half_turn_ids = samples[half_turn_ids]  # every vertex → the sample nearest its half-turn
+    identity_ids = samples[nearest(V[samples], V)[1]]
+    rows = slice(None) if not large else samples
+    cands = [Candidate(refined_map=ids[rows], distortion=1.0) for ids in (identity_ids, half_turn_ids)]
+    done = Candidate(refined_map=half_turn_ids[rows], distortion=1.0, curvature_disagreement=0.5)
+    timings = {}
+    measure_distortion(ctx, [*cands, done], GeoshapeOptions(), timings)
+    identity, half_turn = cands
+    assert identity.curvature_disagreement == 0.0 and half_turn.curvature_disagreement > 0.3
+    assert done.curvature_disagreement == 0.5 and "curvature" in timings
+    if large:  # the value a per-vertex map gives
+        per_vertex = Candidate(refined_map=half_turn_ids, distortion=1.0)
+        per_vertex_ctx = SimpleNamespace(**{**vars(ctx), "large": False})
+        measure_distortion(per_vertex_ctx, [per_vertex], GeoshapeOptions(), {})
+        assert half_turn.curvature_disagreement == pytest.approx(per_vertex.curvature_disagreement)
+
+
+def test_a_flat_field_ranks_no_map_above_another():
+    """At one eigenfunction the field is a constant: every map scores 1 (the factor then
+    changes no decision) instead of a ratio of rounding errors."""
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.correspondence.pipeline import curvature_disagreement
+
+    V, F = _bumped_sphere()
+    h = PreparedMesh(V, F).curvature_field(1)
+    rng = np.random.default_rng(0)
+    assert {curvature_disagreement(h, h[rng.permutation(len(h))], h) for _ in range(3)} == {1.0}
+    assert curvature_disagreement(h, np.full_like(h, np.nan), h) == 1.0

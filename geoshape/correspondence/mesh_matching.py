@@ -177,7 +177,7 @@ class PreparedMesh:
         return self.cached(("descriptor_operators", k, lb_k), lambda: descriptor_operators(
             self.V, self.F, self.laplacian(lb_k), k=k))
 
-    def curvature_field(self, k: int):
+    def curvature_field(self, k: int) -> np.ndarray:
         """``(n,)`` unit-free mean curvature (:func:`~geoshape.geometry.curvature.mean_curvature`)
         projected onto the first ``k`` Laplace–Beltrami eigenfunctions: the curvature at the
         resolution of a ``k``-eigenpair functional map, free of per-vertex noise. Cached;

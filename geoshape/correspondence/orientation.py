@@ -14,26 +14,13 @@ from __future__ import annotations
 import numpy as np
 
 from geoshape.errors import InvalidOptionError
-from geoshape.geometry.mesh import face_areas, face_normals, signed_volume
-
-
-def outward_sign(V, F) -> float:
-    """+1 if the faces are wound so normals point out of the enclosed volume, else −1."""
-    return 1.0 if signed_volume(V, F) >= 0 else -1.0
-
-
-def vertex_normals(V, F) -> np.ndarray:
-    """(n, 3) area-weighted unit vertex normals."""
-    N = np.zeros_like(V)
-    fn = face_normals(V, F, unit=False)
-    for c in range(3):
-        np.add.at(N, F[:, c], fn)
-    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
-
-
-def outward_vertex_normals(V, F) -> np.ndarray:
-    """(n, 3) unit vertex normals pointing out of the enclosed volume, O(m)."""
-    return vertex_normals(V, F) * outward_sign(V, F)
+from geoshape.geometry.mesh import (  # noqa: F401 (normals re-exported: their home is geometry.mesh)
+    face_areas,
+    face_normals,
+    outward_sign,
+    outward_vertex_normals,
+    vertex_normals,
+)
 
 
 def patch_orientation_score(V1, F1, V2, F2, p2p_12, *, n_samples: int = 2000, radius: float = 0.1,

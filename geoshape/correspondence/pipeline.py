@@ -513,7 +513,7 @@ def pair_context(m1: PreparedMesh, m2: PreparedMesh, A: np.ndarray, B: np.ndarra
     large = max(m1.n, m2.n) > LARGE_MESH
     normals = screen_to_refine = None
     if large:
-        from geoshape.correspondence.orientation import outward_vertex_normals
+        from geoshape.geometry.mesh import outward_vertex_normals
 
         normals = (outward_vertex_normals(m1.V, m1.F), outward_vertex_normals(m2.V, m2.F))
         screen_to_refine = nearest(m1.V[c1], m1.V[s1])[1]
@@ -872,7 +872,8 @@ def landmark_resolve(ctx: PairContext, source: Candidate, options: GeoshapeOptio
 def repair_sources(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> list[Candidate]:
     """The refined maps :func:`orientation_repair` re-solves, all of the unwanted orientation:
     the one of lowest :func:`decision_score` and, when it is another map, the most isometric
-    one (lowest score without the orientation factor). Empty when the repair does not run:
+    one (lowest score without the orientation factor; the curvature factor kept: it does not
+    see left from right, only front from back). Empty when the repair does not run:
     off, fewer than 3 usable eigenpairs, or no map of the unwanted orientation.
     O(len(refined)).
 
@@ -890,7 +891,9 @@ def repair_sources(ctx: PairContext, refined: list[Candidate], options: Geoshape
     if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
         return []
     best = min(sources, key=decision_score)
-    isometric = min(sources, key=lambda c: decision_score(c, (*DECISION_EXPONENTS[:3], 0.0)))
+    without_share = tuple(0.0 if name == "orientation share" else e
+                          for name, e in zip(DECISION_FACTORS, DECISION_EXPONENTS, strict=True))
+    isometric = min(sources, key=lambda c: decision_score(c, without_share))
     return [best] if isometric is best else [best, isometric]
 
 
@@ -1085,10 +1088,17 @@ def curvature_disagreement(h1: np.ndarray, h2_images: np.ndarray, h2: np.ndarray
     0.0
     >>> curvature_disagreement(h, h[::-1], h)  # a map that reverses the field: worse than chance
     2.0
+    >>> curvature_disagreement(np.ones(4), np.ones(4), np.ones(4))  # a flat field
+    1.0
     """
     h1, h2_images, h2 = (np.asarray(x, dtype=np.float64) for x in (h1, h2_images, h2))
-    chance = np.mean(h1**2) + np.mean(h2**2) - 2.0 * np.mean(h1) * np.mean(h2)
-    return float(np.mean((h1 - h2_images) ** 2) / max(chance, 1e-300))
+    # E (h1(x) − h2(y))² over independent x, y, written without cancellation
+    chance = np.var(h1) + np.var(h2) + (np.mean(h1) - np.mean(h2)) ** 2
+    scale = np.mean(h1**2) + np.mean(h2**2)
+    disagreement = np.mean((h1 - h2_images) ** 2)
+    if not (np.isfinite(chance) and np.isfinite(disagreement) and chance > 1e-12 * scale):
+        return 1.0  # a flat field (a sphere, lb_k = 1) or a broken one tells no map from another
+    return float(disagreement / chance)
 
 
 def local_rigidity(X1: np.ndarray, X2: np.ndarray, patches: np.ndarray) -> float:
@@ -1307,7 +1317,7 @@ def run_geoshape(m1: PreparedMesh, m2: PreparedMesh, options: GeoshapeOptions) -
         timings["embedding"] = time.perf_counter() - t
         t = time.perf_counter()
         m2.curvature_field(lb_k)
-        timings["curvature"] = time.perf_counter() - t
+        timings["curvature field"] = time.perf_counter() - t
         timings["eigenpairs and embedding (beside)"] = _adopted(basis1.result(), (m1,))
     A, B, alignments = candidate_alignments(m1, m2, options, timings)
     ctx = pair_context(m1, m2, A, B, options, timings)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoshape.geometry.mesh import outward_vertex_normals
 from geoshape.io.validate import check_mesh
 
 __all__ = ["mean_curvature"]
@@ -21,10 +22,11 @@ def mean_curvature(V, F) -> np.ndarray:
     """``(n,)`` mean curvature × √area of every vertex of ``V (n, 3)``, ``F (m, 3)``.
 
     Positive where the surface is convex seen from outside (a sphere: ``2√π`` everywhere; a
-    long cylinder of radius r and length l: ``√(2π r l) / (2 r)`` away from its caps),
-    negative in saddles and dents, 0 on a plane. Pointwise values on a coarse or irregular
-    mesh are noisy; project them onto a few Laplace–Beltrami eigenfunctions to compare two
-    meshes. A vertex of zero area gets 0. O(m) after the Laplacian.
+    torus of radii R > r: ``(R + 2r cos v) / (2r (R + r cos v)) × 2π √(R r)``, negative on
+    the inner equator when R < 2r), negative in saddles and dents, 0 on a plane. Pointwise
+    values on a coarse or irregular mesh are noisy; project them onto a few Laplace–Beltrami
+    eigenfunctions to compare two meshes. A vertex of zero area gets 0; on an open mesh the
+    boundary vertices are biased (their Laplacian sees one side only). O(m) after the Laplacian.
 
     >>> import trimesh
     >>> s = trimesh.creation.icosphere(subdivisions=4, radius=3.0)
@@ -33,8 +35,6 @@ def mean_curvature(V, F) -> np.ndarray:
     True
     """
     import robust_laplacian
-
-    from geoshape.correspondence.orientation import outward_vertex_normals
 
     V, F = check_mesh(V, F, name="mesh")
     L, M = robust_laplacian.mesh_laplacian(V, F)  # L positive semi-definite: L x = −M Δx

@@ -1,4 +1,5 @@
-"""Per-mesh primitives, one home each: face areas and normals, vertex areas, unique edges,
+"""Per-mesh primitives, one home each: face areas and normals, vertex normals (outward),
+vertex areas, unique edges,
 connected components and the edge graph of a triangle mesh.
 
 Every function takes the arrays as they are (``V (n, 3)`` float, ``F (m, 3)`` int, as
@@ -18,6 +19,9 @@ from geoshape.io.validate import check_face_indices, check_mesh
 __all__ = [
     "ZERO_LENGTH_EPS",
     "face_normals",
+    "vertex_normals",
+    "outward_sign",
+    "outward_vertex_normals",
     "face_areas",
     "vertex_areas",
     "degenerate_faces",
@@ -56,6 +60,25 @@ def face_normals(V: np.ndarray, F: np.ndarray, *, unit: bool = True) -> np.ndarr
     if unit:
         N = N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
     return N
+
+
+def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n, 3) area-weighted unit vertex normals (the winding's side), O(m)."""
+    N = np.zeros_like(V)
+    fn = face_normals(V, F, unit=False)
+    for c in range(3):
+        np.add.at(N, F[:, c], fn)
+    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+
+
+def outward_sign(V: np.ndarray, F: np.ndarray) -> float:
+    """+1 if the faces are wound so normals point out of the enclosed volume, else −1."""
+    return 1.0 if signed_volume(V, F) >= 0 else -1.0
+
+
+def outward_vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n, 3) unit vertex normals pointing out of the enclosed volume, O(m)."""
+    return vertex_normals(V, F) * outward_sign(V, F)
 
 
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -98,8 +98,7 @@ def orientation_operators(V: np.ndarray, F: np.ndarray, basis: LaplacianBasis, d
     """
     import igl
 
-    from geoshape.correspondence.orientation import outward_sign
-    from geoshape.geometry.mesh import face_areas, face_normals
+    from geoshape.geometry.mesh import face_areas, face_normals, outward_sign
 
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
