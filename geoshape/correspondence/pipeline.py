@@ -872,10 +872,9 @@ def landmark_resolve(ctx: PairContext, source: Candidate, options: GeoshapeOptio
 def repair_sources(ctx: PairContext, refined: list[Candidate], options: GeoshapeOptions) -> list[Candidate]:
     """The refined maps :func:`orientation_repair` re-solves, all of the unwanted orientation:
     the one of lowest :func:`decision_score` and, when it is another map, the most isometric
-    one (lowest score without the orientation factor; the curvature factor kept: it does not
-    see left from right, only front from back). Empty when the repair does not run:
-    off, fewer than 3 usable eigenpairs, or no map of the unwanted orientation.
-    O(len(refined)).
+    one (lowest score without the orientation factor), both scored without the curvature
+    factor (:func:`_source_exponents`). Empty when the repair does not run: off, fewer than 3
+    usable eigenpairs, or no map of the unwanted orientation. O(len(refined)).
 
     Why two: the repair keeps its source's images of the landmarks and replaces its
     orientation, and the orientation share of the score reads both ways here. It prefers a
@@ -890,11 +889,21 @@ def repair_sources(ctx: PairContext, refined: list[Candidate], options: Geoshape
     sources = [c for c in refined if c.unwanted]
     if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
         return []
-    best = min(sources, key=decision_score)
-    without_share = tuple(0.0 if name == "orientation share" else e
-                          for name, e in zip(DECISION_FACTORS, DECISION_EXPONENTS, strict=True))
-    isometric = min(sources, key=lambda c: decision_score(c, without_share))
+    best = min(sources, key=lambda c: decision_score(c, _source_exponents()))
+    isometric = min(sources, key=lambda c: decision_score(c, _source_exponents(share=False)))
     return [best] if isometric is best else [best, isometric]
+
+
+def _source_exponents(share: bool = True) -> tuple[float, ...]:
+    """The decision exponents with the curvature factor (and without ``share``, the orientation
+    share) at 0: how :func:`repair_sources` scores a mirrored map. The repair replaces what
+    the curvature disagreement of a mirrored map measures — which side of the body faces
+    where — so that factor says nothing of the repaired map; it would only favour the clean
+    left↔right mirror (curvature does not see that mirror), whose repair is the half-turn
+    (remeshed tosca david0 → david6 lost its right map that way)."""
+    off = {"curvature disagreement"} | (set() if share else {"orientation share"})
+    return tuple(0.0 if name in off else e
+                 for name, e in zip(DECISION_FACTORS, DECISION_EXPONENTS, strict=True))
 
 
 def may_complete_symmetry(refined: list[Candidate], options: GeoshapeOptions) -> bool:
