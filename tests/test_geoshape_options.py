@@ -362,6 +362,22 @@ def test_the_repair_also_takes_the_most_isometric_mirror_whatever_its_mirrored_s
     assert pipeline.repair_sources(ctx, [torso_only, mirror(0.0094, -0.8)], GeoshapeOptions()) == [torso_only]
 
 
+def test_the_repair_sources_ignore_the_curvature_factor():
+    """A clean left↔right mirror carries curvature over as well as the right map (low
+    disagreement), a torso-only front↔back mirror does not; the repair replaces exactly that,
+    so the sources are the ones the other factors pick (the torso-only mirror, whose repair
+    is the direct map), however the curvatures compare."""
+    def mirror(distortion, orientation, curvature):
+        c = Candidate(refined_map=np.zeros(2, dtype=np.int64), refined_energy=0.02, distortion=distortion,
+                      curvature_disagreement=curvature)
+        return pipeline._store_refined(c, (c.refined_map, 0.02, orientation), GeoshapeOptions())
+
+    torso_only, clean = mirror(0.0083, -0.25, 0.09), mirror(0.0089, -0.66, 0.015)
+    assert pipeline.decision_score(clean) < pipeline.decision_score(torso_only)  # through curvature
+    ctx = SimpleNamespace(lb_k=60)
+    assert pipeline.repair_sources(ctx, [clean, torso_only], GeoshapeOptions()) == [torso_only]
+
+
 @pytest.mark.slow
 def test_orientation_repair_turns_a_front_back_mirror_into_the_direct_map(monkeypatch):
     """A planted mirrored candidate: a standing figure matched to itself through its front↔back
