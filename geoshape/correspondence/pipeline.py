@@ -889,8 +889,9 @@ def repair_sources(ctx: PairContext, refined: list[Candidate], options: Geoshape
     sources = [c for c in refined if c.unwanted]
     if not (options.orientation_repair and min(options.descriptor_k, ctx.lb_k) >= 3 and sources):
         return []
-    best = min(sources, key=lambda c: decision_score(c, _source_exponents()))
-    isometric = min(sources, key=lambda c: decision_score(c, _source_exponents(share=False)))
+    with_share, without_share = _source_exponents(), _source_exponents(share=False)
+    best = min(sources, key=lambda c: decision_score(c, with_share))
+    isometric = min(sources, key=lambda c: decision_score(c, without_share))
     return [best] if isometric is best else [best, isometric]
 
 
@@ -1047,6 +1048,13 @@ def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.n
     return rows, (slice(0, len(rows)) if ctx.large else rows)
 
 
+def refinement_positions(ctx: PairContext) -> np.ndarray | slice:
+    """Where a refined map holds the images of mesh 1's refinement samples ``ctx.s1``: its
+    first ``len(s1)`` positions in large-mesh mode (maps aligned with the samples), else the
+    sample vertices themselves (per-vertex maps)."""
+    return slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+
+
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
     """Fill the two distortions of every refined candidate that lacks them: ``distortion``,
@@ -1069,7 +1077,7 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
         t = time.perf_counter()
         h1 = ctx.m1.curvature_field(ctx.lb_k)[ctx.s1]
         h2 = ctx.m2.curvature_field(ctx.lb_k)
-        at = slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+        at = refinement_positions(ctx)
         for c in todo:
             c.curvature_disagreement = curvature_disagreement(h1, h2[c.refined_map[at]], h2[ctx.s2])
         timings["curvature"] = timings.get("curvature", 0.0) + time.perf_counter() - t
@@ -1170,7 +1178,7 @@ def measure_rigidity(ctx: PairContext, candidates: list[Candidate], options: Geo
         return
     t = time.perf_counter()
     patches = rigidity_patches(ctx, options)
-    at = slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+    at = refinement_positions(ctx)
     X1 = ctx.m1.V[ctx.s1]
     for c in todo:
         c.rigidity = local_rigidity(X1, ctx.m2.V[c.refined_map[at]], patches)
