@@ -127,3 +127,34 @@ def test_a_flat_field_ranks_no_map_above_another():
     rng = np.random.default_rng(0)
     assert {curvature_disagreement(h, h[rng.permutation(len(h))], h) for _ in range(3)} == {1.0}
     assert curvature_disagreement(h, np.full_like(h, np.nan), h) == 1.0
+
+
+def test_a_prepared_mesh_builds_its_laplacian_once_for_the_basis_and_the_curvature(monkeypatch):
+    import robust_laplacian
+
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.spectral.laplacian import laplacian_basis
+
+    V, F = icosphere(3)
+    builds = []
+    real = robust_laplacian.mesh_laplacian
+    monkeypatch.setattr(robust_laplacian, "mesh_laplacian", lambda *a: builds.append(1) or real(*a))
+    m = PreparedMesh(V, F)
+    field = m.curvature_field(10)
+    basis = m.laplacian(10)
+    assert len(builds) == 1
+    # the shared build changes nothing: the same basis and field as built apart
+    alone = laplacian_basis(V, F, 10)
+    assert np.allclose(basis.evals, alone.evals) and np.allclose(basis.evecs, alone.evecs)
+    H = mean_curvature(V, F)
+    assert np.allclose(field, alone.evecs @ (alone.evecs.T @ (alone.mass * H)))
+
+
+def test_laplacian_matrices_of_another_mesh_are_rejected():
+    from geoshape.errors import InvalidOptionError
+    from geoshape.spectral.laplacian import laplacian_basis, laplacian_matrices
+
+    V, F = icosphere(3)
+    other = laplacian_matrices(*icosphere(2))
+    with pytest.raises(InvalidOptionError, match="Laplacian matrices of shape"):
+        laplacian_basis(V, F, 5, matrices=other)

@@ -164,7 +164,16 @@ class PreparedMesh:
         best = [key for key in self._cache if key[0] == "laplacian" and key[1] >= k]
         if best:
             return self._cache[min(best)].leading(k)
-        return self.cached(("laplacian", k), lambda: laplacian_basis(self.V, self.F, k, name=self.name))
+        return self.cached(("laplacian", k), lambda: laplacian_basis(
+            self.V, self.F, k, name=self.name, matrices=self.laplacian_matrices()))
+
+    def laplacian_matrices(self):
+        """``(L, M)`` of :func:`~geoshape.spectral.laplacian.laplacian_matrices`, built once for
+        the bases and the curvature (O(m), O(n) memory; not handed back from a forked stage)."""
+        from geoshape.spectral.laplacian import laplacian_matrices
+
+        return self.cached(("laplacian_matrices",),
+                           lambda: laplacian_matrices(self.V, self.F, name=self.name))
 
     def has_laplacian(self, k: int) -> bool:
         """Whether :meth:`laplacian` ``(k)`` is already cached (no eigen-solve)."""
@@ -186,7 +195,7 @@ class PreparedMesh:
 
         def field():
             basis = self.laplacian(k)
-            H = mean_curvature(self.V, self.F)
+            H = mean_curvature(self.V, self.F, matrices=self.laplacian_matrices())
             return basis.evecs @ (basis.evecs.T @ (basis.mass * H))
 
         return self.cached(("curvature_field", k), field)

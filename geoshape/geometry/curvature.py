@@ -18,7 +18,7 @@ from geoshape.io.validate import check_mesh
 __all__ = ["mean_curvature"]
 
 
-def mean_curvature(V, F) -> np.ndarray:
+def mean_curvature(V, F, *, matrices: tuple | None = None) -> np.ndarray:
     """``(n,)`` mean curvature × √area of every vertex of ``V (n, 3)``, ``F (m, 3)``.
 
     Positive where the surface is convex seen from outside (a sphere: ``2√π`` everywhere; a
@@ -26,7 +26,9 @@ def mean_curvature(V, F) -> np.ndarray:
     the inner equator when R < 2r), negative in saddles and dents, 0 on a plane. Pointwise
     values on a coarse or irregular mesh are noisy; project them onto a few Laplace–Beltrami
     eigenfunctions to compare two meshes. A vertex of zero area gets 0; on an open mesh the
-    boundary vertices are biased (their Laplacian sees one side only). O(m) after the Laplacian.
+    boundary vertices are biased (their Laplacian sees one side only). ``matrices``: the
+    mesh's :func:`~geoshape.spectral.laplacian.laplacian_matrices`, when already built. O(m)
+    after the Laplacian.
 
     >>> import trimesh
     >>> s = trimesh.creation.icosphere(subdivisions=4, radius=3.0)
@@ -34,10 +36,10 @@ def mean_curvature(V, F) -> np.ndarray:
     >>> bool(abs(np.median(H) - 2 * np.sqrt(np.pi)) < 0.01)
     True
     """
-    import robust_laplacian
+    from geoshape.spectral.laplacian import laplacian_matrices
 
     V, F = check_mesh(V, F, name="mesh")
-    L, M = robust_laplacian.mesh_laplacian(V, F)  # L positive semi-definite: L x = −M Δx
+    L, M = laplacian_matrices(V, F) if matrices is None else matrices  # L x = −M Δx
     mass = np.asarray(M.diagonal()).ravel()
     area = float(mass.sum())
     curvature_normal = (L @ V) / np.maximum(2.0 * mass, 1e-300)[:, None]  # H n

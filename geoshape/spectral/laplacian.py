@@ -61,8 +61,22 @@ class LaplacianBasis:
 EIGSH_TOL = 1e-8
 
 
+def laplacian_matrices(V, F, *, name: str = "mesh") -> tuple[sp.spmatrix, sp.spmatrix]:
+    """``(L, M)``: the intrinsic-Delaunay cotangent Laplacian (positive semi-definite, ``L x =
+    −M Δx``) and the lumped mass matrix of ``V (n, 3)``, ``F (m, 3)``, at the mesh's own scale;
+    a mesh without faces gets the point-cloud Laplacian. The one place geoshape builds them, so
+    a caller that needs both a basis and the curvature builds them once. O(m)."""
+    import robust_laplacian
+
+    V, F = check_mesh(V, F, name=name, allow_no_faces=True)
+    if len(F):
+        return robust_laplacian.mesh_laplacian(V, F)
+    return robust_laplacian.point_cloud_laplacian(V)
+
+
 @mesh_input
-def laplacian_basis(V, F, k: int = 100, *, name: str = "mesh") -> LaplacianBasis:
+def laplacian_basis(V, F, k: int = 100, *, name: str = "mesh",
+                    matrices: tuple | None = None) -> LaplacianBasis:
     """Compute the ``k`` lowest Laplace–Beltrami eigenpairs.
 
     The mesh is first scaled to unit surface area (so eigenvalues are comparable across
@@ -75,22 +89,23 @@ def laplacian_basis(V, F, k: int = 100, *, name: str = "mesh") -> LaplacianBasis
     F : (m, 3) array_like of int, may be empty
     k : int
         Number of eigenpairs, ``1 <= k < n``.
+    matrices : (L, M), optional
+        :func:`laplacian_matrices` of this mesh, when the caller already built them.
 
     Returns
     -------
     LaplacianBasis
     """
-    import robust_laplacian
     from scipy.sparse.linalg import eigsh
 
     V, F = check_mesh(V, F, name=name, allow_no_faces=True)
     n = len(V)
     if not 1 <= k < n:
         raise InvalidOptionError(f"{name}: need 1 <= k < n = {n} Laplacian eigenpairs, got k = {k}")
-    if len(F):
-        L, M = robust_laplacian.mesh_laplacian(V, F)
-    else:
-        L, M = robust_laplacian.point_cloud_laplacian(V)
+    L, M = laplacian_matrices(V, F, name=name) if matrices is None else matrices
+    if L.shape != (n, n) or M.shape != (n, n):
+        raise InvalidOptionError(f"{name}: Laplacian matrices of shape {L.shape} / {M.shape} given for "
+                                 f"{n} vertices")
     area = float(M.diagonal().sum())
     if not area > 0:
         raise InvalidMeshError(f"{name}: zero total area, no Laplacian can be built")
