@@ -168,9 +168,9 @@ class PreparedMesh:
             self.V, self.F, k, name=self.name, matrices=self.laplacian_matrices()))
 
     def laplacian_matrices(self):
-        """``(L, M)`` of :func:`~geoshape.spectral.laplacian.laplacian_matrices`, built once for
+        """``(L, M)`` of :func:`~geoshape.geometry.mesh.laplacian_matrices`, built once for
         the bases and the curvature (O(m), O(n) memory; not handed back from a forked stage)."""
-        from geoshape.spectral.laplacian import laplacian_matrices
+        from geoshape.geometry.mesh import laplacian_matrices
 
         return self.cached(("laplacian_matrices",),
                            lambda: laplacian_matrices(self.V, self.F, name=self.name))

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoshape.geometry.mesh import outward_vertex_normals
+from geoshape.geometry.mesh import laplacian_matrices, outward_vertex_normals
 from geoshape.io.validate import check_mesh
 
 __all__ = ["mean_curvature"]
@@ -27,7 +27,7 @@ def mean_curvature(V, F, *, matrices: tuple | None = None) -> np.ndarray:
     values on a coarse or irregular mesh are noisy; project them onto a few Laplace–Beltrami
     eigenfunctions to compare two meshes. A vertex of zero area gets 0; on an open mesh the
     boundary vertices are biased (their Laplacian sees one side only). ``matrices``: the
-    mesh's :func:`~geoshape.spectral.laplacian.laplacian_matrices`, when already built. O(m)
+    mesh's :func:`~geoshape.geometry.mesh.laplacian_matrices`, when already built. O(m)
     after the Laplacian.
 
     >>> import trimesh
@@ -36,8 +36,6 @@ def mean_curvature(V, F, *, matrices: tuple | None = None) -> np.ndarray:
     >>> bool(abs(np.median(H) - 2 * np.sqrt(np.pi)) < 0.01)
     True
     """
-    from geoshape.spectral.laplacian import laplacian_matrices
-
     V, F = check_mesh(V, F, name="mesh")
     L, M = laplacian_matrices(V, F) if matrices is None else matrices  # L x = −M Δx
     mass = np.asarray(M.diagonal()).ravel()

@@ -31,6 +31,7 @@ __all__ = [
     "vertex_components",
     "edges_graph",
     "edge_graph",
+    "laplacian_matrices",
 ]
 
 #: zero-length edges of a graph weigh this times the bounding-box diagonal
@@ -351,3 +352,16 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
         ring = ring @ step
     ring.sort_indices()
     return ring
+
+
+def laplacian_matrices(V, F, *, name: str = "mesh") -> tuple[sp.spmatrix, sp.spmatrix]:
+    """``(L, M)``: the intrinsic-Delaunay cotangent Laplacian (positive semi-definite, ``L x =
+    −M Δx``) and the lumped mass matrix of ``V (n, 3)``, ``F (m, 3)``, at the mesh's own scale;
+    a mesh without faces gets the point-cloud Laplacian. The one place geoshape builds them, so
+    a caller that needs both a basis and the curvature builds them once. O(m)."""
+    import robust_laplacian
+
+    V, F = check_mesh(V, F, name=name, allow_no_faces=True)
+    if len(F):
+        return robust_laplacian.mesh_laplacian(V, F)
+    return robust_laplacian.point_cloud_laplacian(V)

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from geoshape.errors import InvalidMeshError, InvalidOptionError
+from geoshape.geometry.mesh import laplacian_matrices
 from geoshape.io.interop import mesh_input
 from geoshape.io.validate import check_mesh
 
@@ -59,19 +60,6 @@ class LaplacianBasis:
 
 #: relative accuracy asked of ARPACK (0 would mean machine precision)
 EIGSH_TOL = 1e-8
-
-
-def laplacian_matrices(V, F, *, name: str = "mesh") -> tuple[sp.spmatrix, sp.spmatrix]:
-    """``(L, M)``: the intrinsic-Delaunay cotangent Laplacian (positive semi-definite, ``L x =
-    −M Δx``) and the lumped mass matrix of ``V (n, 3)``, ``F (m, 3)``, at the mesh's own scale;
-    a mesh without faces gets the point-cloud Laplacian. The one place geoshape builds them, so
-    a caller that needs both a basis and the curvature builds them once. O(m)."""
-    import robust_laplacian
-
-    V, F = check_mesh(V, F, name=name, allow_no_faces=True)
-    if len(F):
-        return robust_laplacian.mesh_laplacian(V, F)
-    return robust_laplacian.point_cloud_laplacian(V)
 
 
 @mesh_input
