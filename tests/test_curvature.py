@@ -159,3 +159,5 @@ def test_laplacian_matrices_of_another_mesh_are_rejected():
     other = laplacian_matrices(*icosphere(2))
     with pytest.raises(InvalidOptionError, match="Laplacian matrices of shape"):
         laplacian_basis(V, F, 5, matrices=other)
+    with pytest.raises(InvalidOptionError, match="Laplacian matrices of shape"):
+        mean_curvature(V, F, matrices=other)

@@ -27,7 +27,7 @@ def mean_curvature(V, F, *, matrices: tuple | None = None) -> np.ndarray:
     values on a coarse or irregular mesh are noisy; project them onto a few Laplace–Beltrami
     eigenfunctions to compare two meshes. A vertex of zero area gets 0; on an open mesh the
     boundary vertices are biased (their Laplacian sees one side only). ``matrices``: the
-    mesh's :func:`~geoshape.geometry.mesh.laplacian_matrices`, when already built. O(m)
+    mesh's :func:`~geoshape.geometry.mesh.laplacian_matrices`, when already built (checked). O(m)
     after the Laplacian.
 
     >>> import trimesh
@@ -37,7 +37,7 @@ def mean_curvature(V, F, *, matrices: tuple | None = None) -> np.ndarray:
     True
     """
     V, F = check_mesh(V, F, name="mesh")
-    L, M = laplacian_matrices(V, F) if matrices is None else matrices  # L x = −M Δx
+    L, M = laplacian_matrices(V, F, matrices=matrices)  # L x = −M Δx
     mass = np.asarray(M.diagonal()).ravel()
     area = float(mass.sum())
     curvature_normal = (L @ V) / np.maximum(2.0 * mass, 1e-300)[:, None]  # H n

@@ -354,14 +354,24 @@ def vertex_rings(F, n: int, rings: int) -> sp.csr_matrix:
     return ring
 
 
-def laplacian_matrices(V, F, *, name: str = "mesh") -> tuple[sp.spmatrix, sp.spmatrix]:
+def laplacian_matrices(V, F, *, name: str = "mesh",
+                       matrices: tuple | None = None) -> tuple[sp.spmatrix, sp.spmatrix]:
     """``(L, M)``: the intrinsic-Delaunay cotangent Laplacian (positive semi-definite, ``L x =
     −M Δx``) and the lumped mass matrix of ``V (n, 3)``, ``F (m, 3)``, at the mesh's own scale;
     a mesh without faces gets the point-cloud Laplacian. The one place geoshape builds them, so
-    a caller that needs both a basis and the curvature builds them once. O(m)."""
+    a caller that needs both a basis and the curvature builds them once: ``matrices``, when
+    given, are that earlier build, checked against the mesh's size and returned. O(m).
+    """
     import robust_laplacian
 
     V, F = check_mesh(V, F, name=name, allow_no_faces=True)
+    if matrices is not None:
+        L, M = matrices
+        n = len(V)
+        if L.shape != (n, n) or M.shape != (n, n):
+            raise InvalidOptionError(f"{name}: Laplacian matrices of shape {L.shape} / {M.shape} given for "
+                                     f"{n} vertices")
+        return L, M
     if len(F):
         return robust_laplacian.mesh_laplacian(V, F)
     return robust_laplacian.point_cloud_laplacian(V)

@@ -90,10 +90,7 @@ def laplacian_basis(V, F, k: int = 100, *, name: str = "mesh",
     n = len(V)
     if not 1 <= k < n:
         raise InvalidOptionError(f"{name}: need 1 <= k < n = {n} Laplacian eigenpairs, got k = {k}")
-    L, M = laplacian_matrices(V, F, name=name) if matrices is None else matrices
-    if L.shape != (n, n) or M.shape != (n, n):
-        raise InvalidOptionError(f"{name}: Laplacian matrices of shape {L.shape} / {M.shape} given for "
-                                 f"{n} vertices")
+    L, M = laplacian_matrices(V, F, name=name, matrices=matrices)
     area = float(M.diagonal().sum())
     if not area > 0:
         raise InvalidMeshError(f"{name}: zero total area, no Laplacian can be built")
