@@ -161,3 +161,62 @@ def test_laplacian_matrices_of_another_mesh_are_rejected():
         laplacian_basis(V, F, 5, matrices=other)
     with pytest.raises(InvalidOptionError, match="Laplacian matrices of shape"):
         mean_curvature(V, F, matrices=other)
+
+
+def test_ranked_curvature_compares_kind_not_amount():
+    """By rank, a target that curves like the source but by another amount (any increasing
+    transformation of its field) carries it exactly, while by value it pays for the amount; the
+    half-turn is still seen either way, and a flat field still ranks no map above another
+    (ranks must not turn its rounding noise into a field)."""
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.correspondence.pipeline import curvature_disagreement, within_quantiles
+    from geoshape.geometry.knn import nearest
+
+    V, F = _bumped_sphere()
+    m = PreparedMesh(V, F)
+    h = m.curvature_field(40)
+    heavier = np.sinh(3.0 * h) + 2.0  # same order of the points, other amounts
+    half_turn = nearest(V, V * [-1.0, -1.0, 1.0])[1]
+    identity = np.arange(len(V))
+    assert curvature_disagreement(h, heavier[identity], heavier) > 0.05
+    # (up to ties the transformation's rounding breaks)
+    assert curvature_disagreement(h, heavier[identity], heavier, ranks=True) < 1e-6
+    by_rank = curvature_disagreement(h, heavier[half_turn], heavier, ranks=True)
+    same_kind = curvature_disagreement(h, h[half_turn], h, ranks=True)
+    assert by_rank > 0.2 and by_rank == pytest.approx(same_kind, abs=1e-6)
+    flat = m.curvature_field(1)
+    rng = np.random.default_rng(0)
+    assert {curvature_disagreement(flat, flat[rng.permutation(len(h))], flat, ranks=True)
+            for _ in range(3)} == {1.0}
+    assert curvature_disagreement(h, np.full_like(h, np.nan), h, ranks=True) == 1.0
+    q = within_quantiles(h, h)
+    assert q.min() > 0 and q.max() < 1 and abs(q.mean() - 0.5) < 1e-12  # uniform on itself
+
+
+def test_screening_measures_the_coarse_maps_curvature_disagreement():
+    """Screening reads the field at mesh 1's screening samples and their coarse images: 0 for
+    the identity, more for the half-turn, so the screening score refines the right map first
+    where stress and energy tie."""
+    from types import SimpleNamespace
+
+    from geoshape.correspondence.mesh_matching import PreparedMesh
+    from geoshape.correspondence.pipeline import (
+        Candidate,
+        GeoshapeOptions,
+        measure_coarse_distortion,
+        screening_score,
+    )
+    from geoshape.geometry.knn import nearest
+
+    V, F = _bumped_sphere()
+    m = PreparedMesh(V, F)
+    samples = m.samples(300)
+    ctx = SimpleNamespace(m1=m, m2=m, c1=samples, c2=samples, s1=samples, s2=samples, lb_k=40, large=False)
+    identity = samples[nearest(V[samples], V)[1]]
+    half_turn = samples[nearest(V[samples], V * [-1.0, -1.0, 1.0])[1]]
+    cands = [Candidate(coarse_map=ids, zoomout_energy=0.1) for ids in (identity, half_turn)]
+    measure_coarse_distortion(ctx, cands, GeoshapeOptions())
+    right, turned = cands
+    assert right.coarse_curvature == 0.0 and turned.coarse_curvature > 0.3
+    assert right.coarse_distortion == pytest.approx(0.0, abs=1e-9)
+    assert screening_score(turned) > 0.0 == screening_score(right)

@@ -98,7 +98,7 @@ def test_options_are_frozen_and_checked_again_when_replaced():
 def test_defaults_and_accepted_values():
     options = GeoshapeOptions.from_options({})
     assert options == GeoshapeOptions()
-    assert len(GeoshapeOptions.names()) == 30
+    assert len(GeoshapeOptions.names()) == 31
     assert (options.k, options.lb_k, options.n_keep, options.prefer, options.n_samples) == (
         5, 60, 8, "preserving", None)
     numpy_values = GeoshapeOptions(lb_k=np.int64(40), distortion_samples=np.int32(64),
@@ -133,6 +133,9 @@ def test_candidate_summary_keeps_the_alternatives_fields():
     spectral.coarse_distortion = 0.2
     assert list(spectral.summary())[5] == "coarse_distortion"
     assert pipeline.screening_score(spectral) == pytest.approx(0.02)
+    spectral.coarse_curvature = 0.5
+    assert list(spectral.summary())[6] == "coarse_curvature"
+    assert pipeline.screening_score(spectral) == pytest.approx(0.01)
     descriptors = Candidate(source="descriptors", refined_map=np.zeros(3), refined_energy=0.04,
                             refined_orientation=0.7)
     assert descriptors.summary() == {"source": "descriptors", "refined_energy": 0.04,
@@ -463,3 +466,15 @@ def test_final_basis_is_off_at_final_k_zero_and_clipped_to_the_mesh():
     fine = GeoshapeOptions(final_vertices_per_eigenpair=1.0)
     # at most n - 1 of either mesh
     assert final_basis_size(SimpleNamespace(n=200), SimpleNamespace(n=120), fine) == 119
+
+
+def test_screening_ranks_by_the_decision_objective_without_orientation():
+    """The coarse curvature disagreement multiplies the screening score like the refined one
+    multiplies the decision's: of two coarse maps of equal stress and energy, the one that
+    carries the curvature field over is refined first; an unmeasured one counts 1."""
+    right = Candidate(coarse_map=np.zeros(3, dtype=np.int64), zoomout_energy=0.1, coarse_distortion=0.2,
+                      coarse_curvature=0.05)
+    half_turn = dataclasses.replace(right, coarse_curvature=0.4)
+    assert sorted([half_turn, right], key=pipeline.screening_score)[0] is right
+    assert pipeline.screening_score(dataclasses.replace(right, coarse_curvature=None)) == pytest.approx(0.02)
+    assert pipeline.screening_score(right) == pytest.approx(0.001)
