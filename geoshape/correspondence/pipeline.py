@@ -174,10 +174,11 @@ class GeoshapeOptions:
     # kind where they correspond, but not by the same amount, and a squared difference of values
     # charges the right map for that; the quantile of each point within its own mesh's field is
     # unchanged by any increasing transformation of the curvature, so it compares kind with kind.
-    # With the curvature also screening the coarse maps, ranks lowered the ape-like family's
-    # symmetry-aware error on its remeshed copy from 0.150 to 0.131 and its direct error on
-    # both (0.367 → 0.349, 0.381 → 0.369; docs/correspondence3d.md).
-    curvature_ranks: bool = field(default=True, metadata=_BOOL)
+    # Off: with the curvature also screening the coarse maps, ranks lowered the ape-like
+    # family's symmetry-aware error on its remeshed copy from 0.150 to 0.131, but raised the
+    # arm-length family's (0.075 → 0.086; its remeshed copy 0.071 → 0.125 on the first 24
+    # pairs), past that family's 0.10 bound (docs/correspondence3d.md).
+    curvature_ranks: bool = field(default=False, metadata=_BOOL)
     """Compare the two curvature fields by each point's quantile within its own mesh (False: by value)."""
 
     def __post_init__(self):
