@@ -611,13 +611,10 @@ def measure_coarse_distortion(ctx: PairContext, candidates: list[Candidate],
     rows, at = distortion_rows(ctx, ctx.c1, options.distortion_samples)
     distortions = geodesic_distortion(ctx.m1, ctx.m2, rows, *[c.coarse_map[at] for c in candidates],
                                       within=ctx.s2)
-    h1 = ctx.m1.curvature_field(ctx.lb_k)[ctx.c1]
-    h2 = ctx.m2.curvature_field(ctx.lb_k)
-    at = distortion_rows(ctx, ctx.c1, len(ctx.c1))[1]
-    for c, d in zip(candidates, distortions, strict=True):
-        c.coarse_distortion = d
-        c.coarse_curvature = curvature_disagreement(h1, h2[c.coarse_map[at]], h2[ctx.c2],
-                                                    ranks=options.curvature_ranks)
+    curvatures = map_curvature_disagreements(ctx, [c.coarse_map for c in candidates], ctx.c1, ctx.c2,
+                                             options)
+    for c, d, h in zip(candidates, distortions, curvatures, strict=True):
+        c.coarse_distortion, c.coarse_curvature = d, h
 
 
 def screening_score(c: Candidate) -> float:
@@ -1070,14 +1067,21 @@ def distortion_rows(ctx: PairContext, samples: np.ndarray, n: int) -> tuple[np.n
     with ``samples`` (large meshes, where maps live on samples), else the vertices themselves
     of a per-vertex map."""
     rows = samples[:n]
-    return rows, (slice(0, len(rows)) if ctx.large else rows)
+    return rows, sample_positions(ctx, rows)
+
+
+def sample_positions(ctx: PairContext, samples: np.ndarray) -> np.ndarray | slice:
+    """Where a map holds the images of ``samples``, the first ones of mesh 1's screening or
+    refinement samples: its first ``len(samples)`` positions in large-mesh mode (maps aligned
+    with the samples), else the sample vertices themselves (per-vertex maps)."""
+    return slice(0, len(samples)) if ctx.large else samples
 
 
 def refinement_positions(ctx: PairContext) -> np.ndarray | slice:
     """Where a refined map holds the images of mesh 1's refinement samples ``ctx.s1``: its
     first ``len(s1)`` positions in large-mesh mode (maps aligned with the samples), else the
     sample vertices themselves (per-vertex maps)."""
-    return slice(0, len(ctx.s1)) if ctx.large else ctx.s1
+    return sample_positions(ctx, ctx.s1)
 
 
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
@@ -1100,13 +1104,24 @@ def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: G
     todo = [c for c in candidates if c.curvature_disagreement is None]
     if todo:
         t = time.perf_counter()
-        h1 = ctx.m1.curvature_field(ctx.lb_k)[ctx.s1]
-        h2 = ctx.m2.curvature_field(ctx.lb_k)
-        at = refinement_positions(ctx)
-        for c in todo:
-            c.curvature_disagreement = curvature_disagreement(h1, h2[c.refined_map[at]], h2[ctx.s2],
-                                                              ranks=options.curvature_ranks)
+        curvatures = map_curvature_disagreements(ctx, [c.refined_map for c in todo], ctx.s1, ctx.s2,
+                                                 options)
+        for c, h in zip(todo, curvatures, strict=True):
+            c.curvature_disagreement = h
         timings["curvature"] = timings.get("curvature", 0.0) + time.perf_counter() - t
+
+
+def map_curvature_disagreements(ctx: PairContext, maps: list[np.ndarray], samples1: np.ndarray,
+                                samples2: np.ndarray, options: GeoshapeOptions) -> list[float]:
+    """:func:`curvature_disagreement` (by rank with ``curvature_ranks``) of each of ``maps``
+    on mesh 1's ``samples1`` (screening or refinement samples, where the maps hold their
+    images: :func:`sample_positions`) against mesh 2's field on ``samples2``. O(s) per map
+    after the two meshes' cached ``lb_k`` fields."""
+    h1 = ctx.m1.curvature_field(ctx.lb_k)[samples1]
+    h2 = ctx.m2.curvature_field(ctx.lb_k)
+    at = sample_positions(ctx, samples1)
+    return [curvature_disagreement(h1, h2[p2p[at]], h2[samples2], ranks=options.curvature_ranks)
+            for p2p in maps]
 
 
 def within_quantiles(values: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -1117,11 +1132,9 @@ def within_quantiles(values: np.ndarray, reference: np.ndarray) -> np.ndarray:
     >>> within_quantiles(np.array([10.0, 0.0, 5.0, 5.0]), np.array([0.0, 5.0, 5.0, 10.0]))
     array([0.875, 0.125, 0.5  , 0.5  ])
     """
-    reference = np.sort(np.asarray(reference, dtype=np.float64))
-    values = np.asarray(values, dtype=np.float64)
-    below = np.searchsorted(reference, values, side="left")
-    at_or_below = np.searchsorted(reference, values, side="right")
-    return (below + at_or_below) / (2.0 * len(reference))
+    from scipy.stats import percentileofscore
+
+    return percentileofscore(reference, values, kind="mean") / 100.0
 
 
 def curvature_disagreement(h1: np.ndarray, h2_images: np.ndarray, h2: np.ndarray, *,
