@@ -384,3 +384,35 @@ def test_embed_cli(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "eigenvalues" in text and "n_samples=30" in text and "time" in text
     assert main(["embed", str(src), "-o", str(out), "--dims", "1000"]) == 2
+
+
+def test_laplacian_basis_of_a_unit_area_sphere_has_the_analytic_spectrum():
+    """Unit area: radius 1/√(4π), eigenvalues 4π l(l + 1) with multiplicity 2l + 1. The
+    solve asks for more pairs than it checks: Lanczos can miss copies of a multiple eigenvalue
+    when k cuts through its cluster (l = 4 here), a case only exact symmetry produces."""
+    from geoshape.spectral.laplacian import laplacian_basis
+
+    V, F = icosphere(4)
+    basis = laplacian_basis(V * 7.0, F, k=20)  # any scale: the basis is of the unit-area mesh
+    expected = 4 * np.pi * np.repeat([0.0, 2.0, 6.0, 12.0], [1, 3, 5, 7])  # l = 0 … 3
+    assert basis.evals[0] == pytest.approx(0, abs=1e-6)
+    assert basis.evals[1:16] == pytest.approx(expected[1:], rel=0.01)
+    gram = basis.evecs.T @ (basis.mass[:, None] * basis.evecs)
+    assert gram == pytest.approx(np.eye(20), abs=1e-8)
+
+
+def test_shift_invert_solves_the_shifted_system_and_keeps_the_plain_eigenpairs():
+    from scipy.sparse.linalg import eigsh
+
+    from geoshape.geometry.mesh import laplacian_matrices
+    from geoshape.spectral.laplacian import shift_invert
+
+    V, F = bumpy_ellipsoid(3)
+    L, M = laplacian_matrices(V, F)
+    L, M = L.tocsc(), M.tocsc()
+    b = np.random.default_rng(0).standard_normal(len(V))
+    assert (L + 1e-3 * M) @ shift_invert(L, M, -1e-3).matvec(b) == pytest.approx(b, abs=1e-8)
+    v0 = np.ones(len(V))
+    plain = eigsh(L, k=8, M=M, sigma=-1e-6, which="LM", v0=v0)[0]
+    ours = eigsh(L, k=8, M=M, sigma=-1e-6, which="LM", v0=v0, OPinv=shift_invert(L, M, -1e-6))[0]
+    assert np.sort(ours) == pytest.approx(np.sort(plain), rel=1e-9, abs=1e-9)
