@@ -627,8 +627,13 @@ def screening_score(c: Candidate) -> float:
     the curvature which side faces front: without it a front↔back half-turn of about the
     same stress could take the right map's place among the refined ones (the ape-like
     family, docs/correspondence3d.md). An unmeasured curvature counts 1."""
-    curvature = 1.0 if c.coarse_curvature is None else max(c.coarse_curvature, 1e-12)
-    return c.coarse_distortion * c.zoomout_energy * curvature
+    return c.coarse_distortion * c.zoomout_energy * _curvature_factor(c.coarse_curvature)
+
+
+def _curvature_factor(disagreement: float | None) -> float:
+    """A curvature disagreement as a factor of a score: 1 when unmeasured, kept above 0 so a
+    perfect match does not zero the other factors."""
+    return 1.0 if disagreement is None else max(disagreement, 1e-12)
 
 
 def refine_map(ctx: PairContext, init: np.ndarray, options: GeoshapeOptions, *,
@@ -1077,13 +1082,6 @@ def sample_positions(ctx: PairContext, samples: np.ndarray) -> np.ndarray | slic
     return slice(0, len(samples)) if ctx.large else samples
 
 
-def refinement_positions(ctx: PairContext) -> np.ndarray | slice:
-    """Where a refined map holds the images of mesh 1's refinement samples ``ctx.s1``: its
-    first ``len(s1)`` positions in large-mesh mode (maps aligned with the samples), else the
-    sample vertices themselves (per-vertex maps)."""
-    return sample_positions(ctx, ctx.s1)
-
-
 def measure_distortion(ctx: PairContext, candidates: list[Candidate], options: GeoshapeOptions,
                        timings: dict) -> None:
     """Fill the two distortions of every refined candidate that lacks them: ``distortion``,
@@ -1251,7 +1249,7 @@ def measure_rigidity(ctx: PairContext, candidates: list[Candidate], options: Geo
         return
     t = time.perf_counter()
     patches = rigidity_patches(ctx, options)
-    at = refinement_positions(ctx)
+    at = sample_positions(ctx, ctx.s1)
     X1 = ctx.m1.V[ctx.s1]
     for c in todo:
         c.rigidity = local_rigidity(X1, ctx.m2.V[c.refined_map[at]], patches)
@@ -1287,7 +1285,7 @@ def decision_score(c: Candidate, exponents: tuple[float, ...] = DECISION_EXPONEN
     """
     a, b, h, s = exponents
     share = 1.0 if c.orientation_share is None else max(c.orientation_share, 1e-6)
-    curvature = 1.0 if c.curvature_disagreement is None else max(c.curvature_disagreement, 1e-12)
+    curvature = _curvature_factor(c.curvature_disagreement)
     return c.distortion ** a * c.refined_energy ** b * curvature ** h / share ** s
 
 
