@@ -627,13 +627,14 @@ def screening_score(c: Candidate) -> float:
     the curvature which side faces front: without it a front↔back half-turn of about the
     same stress could take the right map's place among the refined ones (the ape-like
     family, docs/correspondence3d.md). An unmeasured curvature counts 1."""
-    return c.coarse_distortion * c.zoomout_energy * _curvature_factor(c.coarse_curvature)
+    return c.coarse_distortion * c.zoomout_energy * _score_factor(c.coarse_curvature, 1e-12)
 
 
-def _curvature_factor(disagreement: float | None) -> float:
-    """A curvature disagreement as a factor of a score: 1 when unmeasured, kept above 0 so a
-    perfect match does not zero the other factors."""
-    return 1.0 if disagreement is None else max(disagreement, 1e-12)
+def _score_factor(value: float | None, floor: float) -> float:
+    """A measured quantity as a factor of a score: 1 when unmeasured (``None``), kept at or
+    above ``floor`` so a perfect value does not zero the other factors (or, as a divisor,
+    blow up the score)."""
+    return 1.0 if value is None else max(value, floor)
 
 
 def refine_map(ctx: PairContext, init: np.ndarray, options: GeoshapeOptions, *,
@@ -1284,8 +1285,8 @@ def decision_score(c: Candidate, exponents: tuple[float, ...] = DECISION_EXPONEN
     A candidate whose curvature disagreement was not measured counts 1 for it.
     """
     a, b, h, s = exponents
-    share = 1.0 if c.orientation_share is None else max(c.orientation_share, 1e-6)
-    curvature = _curvature_factor(c.curvature_disagreement)
+    share = _score_factor(c.orientation_share, 1e-6)
+    curvature = _score_factor(c.curvature_disagreement, 1e-12)
     return c.distortion ** a * c.refined_energy ** b * curvature ** h / share ** s
 
 
