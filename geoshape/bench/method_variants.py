@@ -54,6 +54,10 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
                 overrides["n_starts"] = int(mod[6:])
                 continue
             name, eq, weight = mod[1:].partition("=")
+            term = overrides.get("heights", CONTOUR_METHODS.get(base, {}).get("heights"))
+            if mod.startswith("h") and eq and term and name in _HEIGHTS_MODIFIERS:
+                overrides["heights"] = _with_height_option(term, name, weight)
+                continue
             parts = overrides.get("parts", CONTOUR_METHODS.get(base, {}).get("parts", ()))
             if mod.startswith("w") and eq and float(weight) >= 0 and name in [p[0] for p in parts]:
                 overrides["parts"] = tuple((p[0], float(weight), *p[2:]) if p[0] == name else p
@@ -63,10 +67,26 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
                                  "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
+                                 "+hweight=X, +hskip=X, +hgroups=K, +hstep=K, +hstarts=K for a "
+                                 "method with a heights term, "
                                  f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g})")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides
+
+
+#: ``+hNAME=X`` modifiers of a method's ``heights`` term: name -> (key, type).
+_HEIGHTS_MODIFIERS = {"weight": ("weight", float), "skip": ("skip_cost", float),
+                      "groups": ("n_groups", int), "step": ("step", int), "starts": ("n_starts", int)}
+
+
+def _with_height_option(term: dict, name: str, value: str) -> dict:
+    """``term`` with the option of modifier ``+h<name>=<value>`` replaced (checked by
+    :func:`geoshape.contour.methods.method_spec`)."""
+    key, kind = _HEIGHTS_MODIFIERS[name]
+    if key == "n_groups":
+        return dict(term, descriptor=dict(term["descriptor"], n_groups=kind(value)))
+    return dict(term, **{key: kind(value)})
 
 
 def variant_tracing(base: str, n_points: int, overrides: dict) -> dict:

@@ -289,3 +289,27 @@ def blocked_chords(P, iu, ju, eps):
                 blocked[p] = True
                 break
     return blocked
+
+
+@numba.njit(cache=True, nogil=True)
+def cyclic_dp_l1_kernel(H1, H2, base, skip, totals, starts):
+    """:func:`cyclic_dp_kernel` on city-block point costs.
+
+    ``C[b, v, i, j] = Σ_k |H1[i, k] − H2[b, v, j, k]|`` is filled pair by pair into a small
+    buffer (no ``(B, V, N, M)`` array is made). ``H1 (N, K)``, ``H2 (B, V, M, K)``.
+    O(B·V·N·M·K) for the costs plus the matcher's O(B·(V·M·N + k·N·M)).
+    """
+    B, V, M, K = H2.shape
+    N = H1.shape[0]
+    jl = skip * np.arange(M + 1).astype(np.float64)
+    D, diag, acc, cells = np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N)
+    Cb = np.empty((V, N, M))
+    for b in range(B):
+        for v in range(V):
+            for i in range(N):
+                for j in range(M):
+                    c = 0.0
+                    for k in range(K):
+                        c += abs(H1[i, k] - H2[b, v, j, k])
+                    Cb[v, i, j] = c
+        _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells)

@@ -208,7 +208,7 @@ def curvature_map(P, *, window: int = 4, n_samples: int = 8, threshold: str = "n
     return np.hstack([C[:, None], read(i + steps), read(i - steps)])
 
 
-def height_functions(P, *, n_groups: int = 25, decay: float | None = 0.25,
+def height_functions(P, *, n_groups: int = 25, decay: float | str | None = 0.25,
                      scale: str = "centroid") -> np.ndarray:
     """Height functions of every point of a closed contour (Wang et al. 2012).
 
@@ -226,13 +226,16 @@ def height_functions(P, *, n_groups: int = 25, decay: float | None = 0.25,
         Closed contour, counter-clockwise, points uniformly spaced by arc length.
     n_groups : int
         Number of runs the heights are averaged over (``1 ≤ n_groups ≤ N − 1``).
-    decay : float or None
+    decay : float, "inverse" or None
         Weight ``exp(−d / decay)`` of a run whose centre is ``d`` (fraction of the
         perimeter, ``0 ≤ d ≤ ½``) away from ``i`` along the contour in either direction;
-        ``None``: all runs weigh 1.
-    scale : {"centroid", "perimeter"}
-        Heights are divided by the mean distance of the points to their centroid, or by the
-        perimeter / 2π.
+        ``"inverse"``: weight ``1 / r`` of the ``r``-th run from ``i`` in either direction
+        (``r = min(m, n_groups + 1 − m)`` for run ``m = 1 … n_groups``, as in the paper's
+        weighted cost); ``None``: all runs weigh 1.
+    scale : {"centroid", "perimeter", "max"}
+        Heights are divided by the mean distance of the points to their centroid, by the
+        perimeter / 2π, or (``"max"``, the paper's normalisation) by the largest absolute
+        run mean of the shape, so that every run mean lies in [−1, 1].
 
     Returns
     -------
@@ -255,20 +258,23 @@ def height_functions(P, *, n_groups: int = 25, decay: float | None = 0.25,
     """
     from geoshape.io.validate import check_contour
 
-    check_choice("scale", scale, ("centroid", "perimeter"))
+    check_choice("scale", scale, ("centroid", "perimeter", "max"))
     P = check_contour(P)
     N = len(P)
     if not 1 <= n_groups <= N - 1:
         raise InvalidOptionError(f"n_groups must be in [1, {N - 1}], got {n_groups}")
-    if decay is not None and not decay > 0:
-        raise InvalidOptionError(f"decay must be positive or None, got {decay}")
+    if decay is not None and decay != "inverse" and not (
+            isinstance(decay, (int, float)) and decay > 0):
+        raise InvalidOptionError(f"decay must be positive, 'inverse' or None, got {decay!r}")
     t = np.roll(P, -1, axis=0) - np.roll(P, 1, axis=0)
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
     normal = np.c_[-t[:, 1], t[:, 0]]  # left of the walking direction
     if scale == "centroid":
         s = float(np.linalg.norm(P - P.mean(axis=0), axis=1).mean())
-    else:
+    elif scale == "perimeter":
         s = float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum()) / (2 * np.pi)
+    else:
+        s = 1.0  # the run means are divided by their largest magnitude below
     idx = (np.arange(N)[:, None] + np.arange(1, N)[None, :]) % N  # (N, N-1): i + j
     h = np.einsum("ijk,ik->ij", P[idx] - P[:, None, :], normal) / max(s, 1e-300)
     # Run means over fractional run boundaries of the N - 1 heights.
@@ -278,7 +284,12 @@ def height_functions(P, *, n_groups: int = 25, decay: float | None = 0.25,
     hi_idx = np.minimum(lo + 1, N - 1)
     at = cum[:, lo] + hi[None, :] * (cum[:, hi_idx] - cum[:, lo])  # cumulative sum at edges
     H = np.diff(at, axis=1) / np.diff(edges)[None, :]
-    if decay is not None:
+    if scale == "max":
+        H /= max(float(np.abs(H).max()), 1e-300)
+    if decay == "inverse":
+        m = np.arange(1, n_groups + 1)
+        H /= np.minimum(m, n_groups + 1 - m)[None, :]
+    elif decay is not None:
         centre = 0.5 * (edges[:-1] + edges[1:]) + 0.5  # j of the run centre (j starts at 1)
         d = np.minimum(centre, N - centre) / N
         H *= np.exp(-d / decay)[None, :]

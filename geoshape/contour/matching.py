@@ -41,6 +41,7 @@ __all__ = [
     "cyclic_dp_match",
     "cyclic_dp_variants",
     "cyclic_dp_gram_costs",
+    "cyclic_dp_l1_costs",
     "batch_match_costs",
 ]
 
@@ -240,6 +241,29 @@ def cyclic_dp_gram_costs(G: np.ndarray, n1: np.ndarray, n2: np.ndarray, *, skip_
     cyclic_dp_gram_kernel(G, np.ascontiguousarray(n1, dtype=np.float64),
                           np.ascontiguousarray(n2, dtype=np.float64), _diagonal_base(N, M),
                           float(skip_cost), totals, starts)
+    return totals.min(axis=1) / ((N + M) / 2.0)
+
+
+def cyclic_dp_l1_costs(H1: np.ndarray, H2s: np.ndarray, *, skip_cost: float,
+                       n_starts: int) -> np.ndarray:
+    """Per-pair DP costs ``(B,)`` for city-block point costs ``Σ_k |H1[i, k] − H2s[b, v, j, k]|``.
+
+    ``H1 (N, K)``, ``H2s (B, V, M, K)`` (``V`` variants of each shape, e.g. it and its mirror
+    image; ``n_starts`` counts over all of them). The same values as
+    ``batch_match_costs(C, "dp", …)`` on those cost matrices, which are never stored (each is
+    built in a small buffer by the compiled kernel). O(B·V·N·M·K + B·n_starts·N·M).
+    """
+    from geoshape.contour._kernels import cyclic_dp_l1_kernel
+
+    _check_dp_options(skip_cost, n_starts)
+    H1 = np.ascontiguousarray(H1, dtype=np.float64)
+    H2s = np.ascontiguousarray(H2s, dtype=np.float64)
+    B, V, M, _ = H2s.shape
+    N = len(H1)
+    k = min(n_starts, V * M)
+    totals = np.empty((B, k))
+    starts = np.empty((B, k), dtype=np.int64)
+    cyclic_dp_l1_kernel(H1, H2s, _diagonal_base(N, M), float(skip_cost), totals, starts)
     return totals.min(axis=1) / ((N + M) / 2.0)
 
 

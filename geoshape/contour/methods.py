@@ -60,6 +60,7 @@ from geoshape.contour.matching import (
     batch_match_costs,
     best_match,
     cyclic_dp_gram_costs,
+    cyclic_dp_l1_costs,
     cyclic_dp_match,
     hungarian_match,
     proximity_match,
@@ -193,6 +194,17 @@ def _variant(summary: str, **changes) -> dict:
     return out
 
 
+def _heights_term(weight: float, *, n_groups: int = 23, skip_cost: float = 0.15, n_starts: int = 4,
+                  step: int = 2) -> dict:
+    """A ``heights`` term: ``weight`` × the height-functions dissimilarity (:func:`height_costs`)
+    of every ``step``-th contour point, ``n_groups`` runs per point weighted ``1 / r`` and
+    scaled to [−1, 1] (:func:`geoshape.contour.descriptors.height_functions` with
+    ``decay="inverse"``, ``scale="max"``), cyclic DP with ``skip_cost`` and ``n_starts`` starts
+    per orientation."""
+    return dict(weight=weight, descriptor=dict(n_groups=n_groups, decay="inverse", scale="max"),
+                skip_cost=skip_cost, n_starts=n_starts, step=step)
+
+
 #: Methods by name. ``parts``: (descriptor, weight, transform, options); ``metric``: the
 #: point cost; ``matcher`` and its options; ``mirror``: also match the mirror image (the
 #: cyclic DP then tries ``n_starts`` starts per orientation: the best ``2·n_starts`` over both).
@@ -219,6 +231,9 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default_hf": _variant("default_2026_11 + 3 x height functions (25 runs), cyclic DP, mirror images too",
                            parts=_PAPER_PARTS + (("height_functions", 3.0, "raw", {}),),
                            matcher_options=dict(skip_cost=0.3, n_starts=4), tracing=_TRACING_2026_11),
+    "default_heights": _variant("the default + 0.25 x height-functions dissimilarity (Wang et al. 2012: "
+                                "23 runs weighted 1/r, city-block DP on every 2nd point, divided by "
+                                "the shapes' complexities)", heights=_heights_term(0.25)),
     "height_functions": dict(
         parts=(("height_functions", 1.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.06, n_starts=4),
@@ -286,14 +301,14 @@ def method_spec(method: str, **overrides) -> dict:
     for key, value in overrides.items():
         if value is None:
             continue
-        if key in ("matcher", "metric", "mirror", "parts"):
+        if key in ("matcher", "metric", "mirror", "parts", "heights"):
             spec[key] = value
         elif key in ("skip_cost", "n_starts", "c1", "c2"):
             spec["matcher_options"][key] = value
         else:
             raise InvalidOptionError(
                 f"unknown option {key!r} for method {method!r}; allowed: matcher, metric, "
-                "mirror, parts, skip_cost, n_starts, c1, c2"
+                "mirror, parts, heights, skip_cost, n_starts, c1, c2"
             )
     check_choice("matcher", spec["matcher"], MATCHERS)
     check_choice("metric", spec["metric"], ("sqeuclidean", "chi2"))
@@ -302,7 +317,22 @@ def method_spec(method: str, **overrides) -> dict:
         check_choice("transform", transform, _TRANSFORMS)
     if spec["metric"] == "chi2" and (len(spec["parts"]) != 1 or spec["parts"][0][2] != "hist"):
         raise InvalidOptionError("metric 'chi2' needs exactly one histogram descriptor")
+    if spec.get("heights"):
+        _check_heights(spec["heights"])
     return spec
+
+
+def _check_heights(term: dict) -> None:
+    """Reject a malformed ``heights`` term, naming the bad entry."""
+    keys = {"weight", "descriptor", "skip_cost", "n_starts", "step"}
+    if not isinstance(term, dict) or set(term) != keys:
+        raise InvalidOptionError(f"heights must be a dict with keys {sorted(keys)}, got {term!r}")
+    checks = (("weight", term["weight"] >= 0, "≥ 0"), ("skip_cost", term["skip_cost"] > 0, "> 0"),
+              ("n_starts", int(term["n_starts"]) == term["n_starts"] >= 1, "an integer ≥ 1"),
+              ("step", int(term["step"]) == term["step"] >= 1, "an integer ≥ 1"))
+    for name, ok, what in checks:
+        if not ok:
+            raise InvalidOptionError(f"heights {name} must be {what}, got {term[name]!r}")
 
 
 @dataclass(frozen=True)
@@ -311,11 +341,17 @@ class ContourSignature:
 
     ``X (N, K)``: embedded descriptors; ``s (N,)``: arc-length positions / perimeter;
     ``X_mirror``: the same for the mirror image (``None`` unless the method uses it).
+    For a method with a ``heights`` term: ``H (N', G)`` the height functions of every
+    ``step``-th point, ``H_mirror`` those of the mirror image (or ``None``) and
+    ``complexity`` the mean city-block distance between the rows of ``H`` (0 otherwise).
     """
 
     X: np.ndarray
     s: np.ndarray
     X_mirror: np.ndarray | None = None
+    H: np.ndarray | None = None
+    H_mirror: np.ndarray | None = None
+    complexity: float = 0.0
 
 
 def _embed(P: np.ndarray, spec: dict) -> np.ndarray:
@@ -344,7 +380,28 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
     s = arc_length(P) / perimeter(P)
     X = _embed(P, spec)
     Xm = _embed(mirror_contour(P), spec) if spec["mirror"] else None
-    return ContourSignature(X, s, Xm)
+    if not spec.get("heights"):
+        return ContourSignature(X, s, Xm)
+    H, Hm, complexity = _height_signature(P, spec)
+    return ContourSignature(X, s, Xm, H, Hm, complexity)
+
+
+def _height_signature(P: np.ndarray, spec: dict):
+    """``(H, H_mirror, complexity)`` of the ``heights`` term: height functions of every
+    ``step``-th point (and of the mirror image of those points), and the shape's complexity,
+    the mean city-block distance between its own rows. O(N'²·G)."""
+    from scipy.spatial.distance import pdist
+
+    from geoshape.contour.descriptors import height_functions
+    from geoshape.geometry.contour import mirror_contour
+
+    term = spec["heights"]
+    Ps = np.ascontiguousarray(P[::term["step"]])
+    H = height_functions(Ps, **term["descriptor"])
+    Hm = height_functions(mirror_contour(Ps), **term["descriptor"]) if spec["mirror"] else None
+    n = len(H)
+    complexity = 2.0 * float(pdist(H, "cityblock").sum()) / (n * n)  # mean over all n² pairs
+    return H, Hm, complexity
 
 
 def _gram_parts(X1: np.ndarray, X2s: np.ndarray, n2: np.ndarray | None = None):
@@ -381,7 +438,9 @@ class SignatureStack:
     ``XV (B, V, M, K)``: the embeddings of each shape (``V = 1``) and of its mirror image
     (``V = 2``), stacked once so that one matrix product per query gives the Gram matrices of
     both orientations; ``X (B, M, K)`` and ``X_mirror (B, M, K)`` (or ``None``) are views of it;
-    ``s (B, M)``; ``sq_norms (B, V, M)``: squared row norms of ``XV``.
+    ``s (B, M)``; ``sq_norms (B, V, M)``: squared row norms of ``XV``; with a ``heights``
+    term, ``HV (B, V, M', G)`` the height functions of each orientation and ``complexity (B,)``
+    (else ``None``).
     """
 
     X: np.ndarray
@@ -389,6 +448,8 @@ class SignatureStack:
     X_mirror: np.ndarray | None
     sq_norms: np.ndarray
     XV: np.ndarray
+    HV: np.ndarray | None = None
+    complexity: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.X)
@@ -396,8 +457,9 @@ class SignatureStack:
     def tail(self, first: int) -> SignatureStack:
         """The signatures from ``first`` on (views)."""
         mirror = None if self.X_mirror is None else self.X_mirror[first:]
+        heights = (None, None) if self.HV is None else (self.HV[first:], self.complexity[first:])
         return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:],
-                              self.XV[first:])
+                              self.XV[first:], *heights)
 
 
 def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
@@ -410,18 +472,24 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
         if mirror:
             XV[b, 1] = sig.X_mirror
     norms = (XV**2).sum(axis=3)
+    HV = complexity = None
+    if sigs[0].H is not None:
+        HV = np.stack([[sig.H, sig.H_mirror] if mirror else [sig.H] for sig in sigs])
+        complexity = np.array([sig.complexity for sig in sigs])
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
-                          norms, XV)
+                          norms, XV, HV, complexity)
 
 
-def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
-    """Retrieval distances from one signature to several: ``(len(sigs2),)``.
+def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarray:
+    """Retrieval distances from one signature to several: ``(len(sigs2),)``, or to those at
+    ``cols`` only (``(len(cols),)``; the ``dp`` matcher with the squared-Euclidean cost).
 
     ``sigs2``: a list of signatures or a :class:`SignatureStack` of them. With ``mirror``
     the distance is the smaller of the costs against each shape and against its mirror
     image; for the ``dp`` matcher ``n_starts`` is then per orientation (the best
     ``2·n_starts`` starts ranked over both orientations together). Shapes in ``sigs2`` must
-    have equal point counts (they are stacked).
+    have equal point counts (they are stacked). A method with a ``heights`` term adds
+    ``weight ×`` :func:`height_costs` (matched on their own).
 
     For the ``dp`` matcher with the squared-Euclidean cost the cost matrices are never
     stored: the compiled matcher builds each from the matrix product
@@ -430,10 +498,34 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict) -> np.ndarray:
     if len(sigs2) == 0:
         return np.zeros(0)
     stack = sigs2 if isinstance(sigs2, SignatureStack) else stack_signatures(list(sigs2))
+    out = _main_pair_costs(sig1, stack, spec, cols)
+    if spec.get("heights"):
+        out += spec["heights"]["weight"] * height_costs(sig1, stack, spec, cols)
+    return out
+
+
+def height_costs(sig1: ContourSignature, stack: SignatureStack, spec: dict,
+                 cols=None) -> np.ndarray:
+    """The ``heights`` term of ``spec`` from one signature to stacked ones (or those at
+    ``cols``): cyclic DP of the height functions with city-block point costs (both
+    orientations with ``mirror``), divided by the sum of the two shapes' complexities — the
+    dissimilarity of Wang et al. (2012), unit-free. O(B·V·N'²·G + B·n_starts·N'²)."""
+    term = spec["heights"]
+    picked = slice(None) if cols is None else np.asarray(cols, dtype=np.int64)
+    HV = stack.HV[picked]
+    costs = cyclic_dp_l1_costs(sig1.H, HV, skip_cost=term["skip_cost"],
+                               n_starts=HV.shape[1] * term["n_starts"])
+    return costs / np.maximum(sig1.complexity + stack.complexity[picked], 1e-300)
+
+
+def _main_pair_costs(sig1: ContourSignature, stack: SignatureStack, spec: dict, cols):
+    """:func:`pair_costs` without the ``heights`` term."""
     X2, s2 = stack.X, stack.s
     opts = _variant_options(spec)
     if spec["matcher"] == "dp" and spec["metric"] == "sqeuclidean":
-        return _dp_pair_costs(sig1.X, stack, opts)
+        return _dp_pair_costs(sig1.X, stack, opts, cols)
+    if cols is not None:
+        raise InvalidOptionError("pair_costs(cols=…) needs the 'dp' matcher with the 'sqeuclidean' cost")
     s1 = np.broadcast_to(sig1.s, (len(stack), len(sig1.s)))
     C = signature_cost_matrices(sig1.X, X2, spec["metric"])
     if spec["mirror"]:
@@ -539,6 +631,9 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
         p2p, cost = _match_one(C, sig1.s, s2, spec)
         if best is None or cost < best[1]:
             best = (index[p2p].astype(np.int64), float(cost))
+    if spec.get("heights"):
+        extra = height_costs(sig1, stack_signatures([sig2]), spec)[0]
+        best = (best[0], best[1] + spec["heights"]["weight"] * float(extra))
     return best
 
 

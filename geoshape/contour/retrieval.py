@@ -234,9 +234,6 @@ def _coarse_block(items_a, items_b, skip_cost: float, n_starts: int) -> np.ndarr
 def _refine_block(items_a, items_b, spec: dict, refine: np.ndarray) -> np.ndarray:
     """Exact distances of the pairs ``i < j`` of a block marked in ``refine (N, N)``; items are
     ``(index, signature)``; the other entries are 0."""
-    from geoshape.contour.methods import _dp_pair_costs, _variant_options
-
-    opts = _variant_options(spec)
     out = np.zeros((len(items_a), len(items_b)))
     index_b = np.array([j for j, _ in items_b])
     stack = stack_signatures([sig for _, sig in items_b])
@@ -244,7 +241,7 @@ def _refine_block(items_a, items_b, spec: dict, refine: np.ndarray) -> np.ndarra
         for r, (i, sig) in enumerate(items_a):
             cols = np.flatnonzero(refine[i, index_b] & (index_b > i))
             if len(cols):
-                out[r, cols] = _dp_pair_costs(sig.X, stack, opts, cols)
+                out[r, cols] = pair_costs(sig, stack, spec, cols)
     return out
 
 
