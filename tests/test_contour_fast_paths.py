@@ -128,7 +128,7 @@ def test_cyclic_dp_equals_numpy_reference(shape, n_starts):
 
 @pytest.mark.parametrize("mirror", [False, True])
 def test_pair_costs_equal_cost_matrices_then_dp(silhouette_contours, mirror):
-    spec = method_spec("default", mirror=mirror)
+    spec = method_spec("default_144pt", mirror=mirror)  # the main term alone
     sigs = [contour_signature(P, spec=spec) for P in silhouette_contours]
     sigs += [contour_signature(wobbly_contour(60, seed), spec=spec) for seed in range(3)]
     stack = stack_signatures(sigs)

@@ -39,7 +39,7 @@ def _similar(P, theta=0.9, scale=2.5, shift=(4.0, -7.0)):
 
 
 def _spec(weight=1.0, **options):
-    return method_spec("default", heights=_heights_term(weight, **options))
+    return method_spec("default_144pt", heights=_heights_term(weight, **options))
 
 
 def test_max_scale_puts_the_run_means_in_unit_range_and_inverse_weights_are_one_over_r(shapes):
@@ -79,7 +79,7 @@ def test_heights_term_is_invariant_to_similarity_start_point_and_mirror(shapes):
 
 
 def test_the_term_adds_weight_times_height_costs_to_the_distance(shapes):
-    base, spec = method_spec("default"), _spec(weight=0.5, n_groups=12)
+    base, spec = method_spec("default_144pt"), _spec(weight=0.5, n_groups=12)
     sig_b = [contour_signature(P, spec=base) for P in shapes]
     sig_h = [contour_signature(P, spec=spec) for P in shapes]
     np.testing.assert_array_equal(sig_b[1].X, sig_h[1].X)
@@ -90,7 +90,7 @@ def test_the_term_adds_weight_times_height_costs_to_the_distance(shapes):
     # only some columns: the same values
     assert np.allclose(pair_costs(sig_h[0], stack, spec, cols=[2, 0]), expected[[2, 0]], rtol=1e-12)
     # match_contours reports the same distance (and the main term's map)
-    _, cost = match_contours(shapes[0], shapes[2], method="default", heights=spec["heights"])
+    _, cost = match_contours(shapes[0], shapes[2], method="default_144pt", heights=spec["heights"])
     assert np.isclose(cost, expected[1], rtol=1e-9)
 
 
@@ -134,8 +134,8 @@ def test_coarse_to_fine_refines_with_the_whole_distance(shapes):
     spec = _spec(weight=0.5, n_groups=12)
     sigs = [contour_signature(P, spec=spec) for P in contours]
     options = dict(heights=spec["heights"], signatures=sigs, backend="serial")
-    exact = shape_distance_matrix(None, "default", search="exact", **options)
-    fine = shape_distance_matrix(None, "default", search="coarse_to_fine", refine_k=1, **options)
+    exact = shape_distance_matrix(None, "default_144pt", search="exact", **options)
+    fine = shape_distance_matrix(None, "default_144pt", search="coarse_to_fine", refine_k=1, **options)
     np.fill_diagonal(fine, np.inf)
     nearest = fine.argmin(axis=1)
     rows = np.arange(len(contours))

@@ -90,9 +90,9 @@ def test_pinned_defaults_keep_their_tracing_when_the_tracer_default_moves(monkey
     plain = mirror2d.matrix_cache_name("set", "default")
     assert contour_tracing("default_128pt")["part_fraction"] == 0.005
     assert contour_tracing("default_100pt")["part_fraction"] == 0.005
-    # default_128pt is the default's matcher and descriptors on its own tracing
+    # default_128pt is default_144pt's matcher and descriptors on its own tracing
     tracing, spec = method_variants.effective_spec("default_128pt")
-    assert spec == method_variants.effective_spec("default")[1]
+    assert spec == method_variants.effective_spec("default_144pt")[1]
     assert tracing == (128, 0.005, 0.0025)
     monkeypatch.setattr(contour, "PART_FRACTION", 0.5)
     assert {m: mirror2d.matrix_cache_name("set", m) for m in pinned} == pinned
@@ -103,5 +103,24 @@ def test_the_default_s_matrix_digest_is_pinned():
     """Saved matrices are found by this digest (bench mirror2d's cache, the .spec files of bench
     rerank): a refactor that changed it would silently recompute every cached matrix. Update it
     only when the default's computation really changes."""
-    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_9e4dce61"
+    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_d70f6ae3"
+    # the default before the height-functions term, pinned: its cached matrices stay valid
+    assert method_variants.matrix_cache_name("kimia99", "default_144pt") == "kimia99_default_144pt_9e4dce61"
 
+
+
+def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_path, capsys):
+    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
+    folder = tmp_path / "sil"
+    generate_silhouettes(folder, per_class=3, classes=("person", "star", "crab"), seed=1, size=96)
+    parser = argparse.ArgumentParser()
+    mirror2d.add_arguments(parser)
+    args = parser.parse_args(["--matrix-dir", str(tmp_path / "work"), "--sets", f"tiny={folder}",
+                              "--methods", "default@64,default_heights+hweight=0.5+hgroups=11@64",
+                              "--section", "default2d-trial", "--n-jobs", "1", "--no-write"])
+    assert mirror2d.run(args) == 0
+    out = capsys.readouterr().out
+    assert "## 2D default method: cross-validated choice (default2d-trial)" in out
+    assert "--section default2d-trial" in out
+    assert "heights term weight 0.5, skip cost 0.15, 11 runs, every 2 points" in out

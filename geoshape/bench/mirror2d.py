@@ -62,6 +62,9 @@ def add_arguments(parser) -> None:
                         help="compare these registered methods instead of mirror settings; the "
                         "first is the time reference of the rule (e.g. "
                         f"{DEFAULT_CANDIDATES})")
+    parser.add_argument("--section", default=None,
+                        help="docs/RESULTS.md section to write with --methods (default default2d, "
+                        "the cross-validated choice; another name keeps that table and adds one)")
     parser.add_argument("--n-jobs", type=int, default=None, help="workers (default: all cores)")
     parser.add_argument("--no-write", action="store_true", help="print only")
 
@@ -262,7 +265,7 @@ def run(args) -> int:
                                 sum_table)
         print(text)
         if not args.no_write:
-            update_results_section("default2d", text)
+            update_results_section(args.section or "default2d", text)
         return 0
     spec = CONTOUR_METHODS["default"]
     library = next((s for s, v in SETTINGS.items()
@@ -307,19 +310,29 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
     def spec(m):
         return CONTOUR_METHODS[parse_variant(m)[0]]
 
+    def described(key, value):
+        if key == "parts":
+            return f", weights {', '.join(f'{p[0]} {p[1]:g}' for p in value)} instead"
+        if key == "heights":
+            return (f", heights term weight {value['weight']:g}, skip cost {value['skip_cost']:g}, "
+                    f"{value['descriptor']['n_groups']} runs, every {value['step']} points, "
+                    f"{value['n_starts']} starts per orientation instead")
+        return f", {key} {value:g} instead"
+
     def extra(m):
         _, n, over = parse_variant(m)
-        return f", {n} contour points" + "".join(
-            f", weights {', '.join(f'{p[0]} {p[1]:g}' for p in v)} instead" if k == "parts" else
-            f", {k} {v:g} instead" for k, v in over.items())
+        return f", {n} contour points" + "".join(described(k, v) for k, v in over.items())
 
     what = "\n".join(f"- `{m}`: {spec(m)['summary']}{extra(m)}" for m in methods)
     default = effective_spec("default")
     same = [m for m in methods if effective_spec(m) == default]
+    section = args.section or "default2d"
+    title = "" if section == "default2d" else f" ({section})"
+    option = "" if section == "default2d" else f" --section {section}"
     return (
-        "## 2D default method: cross-validated choice\n\n"
+        f"## 2D default method: cross-validated choice{title}\n\n"
         f"Command: `geoshape bench mirror2d --matrix-dir DIR --sets {args.sets} --methods "
-        f"{','.join(methods)}` ({time.strftime('%Y-%m-%d')}, processes, "
+        f"{','.join(methods)}{option}` ({time.strftime('%Y-%m-%d')}, processes, "
         f"{workers_note(workers)}, {platform.machine()}; shared with other jobs, 1-min load average "
         f"{min(loads):.1f}–{max(loads):.1f} after each matrix, so times are upper bounds; "
         "`METHOD@N`: the method on N contour points instead of its own ("
@@ -329,7 +342,9 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "
-        "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter). "
+        "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter; `+hweight=X`, "
+        "`+hskip=X`, `+hgroups=K`, `+hstep=K`, `+hstarts=K`: that setting of the method's "
+        "height-functions term). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
         "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
         f"Candidates:\n\n{what}\n\n"
