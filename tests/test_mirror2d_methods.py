@@ -124,3 +124,27 @@ def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_pa
     assert "## 2D default method: cross-validated choice (default2d-trial)" in out
     assert "--section default2d-trial" in out
     assert "heights term weight 0.5, skip cost 0.15, 11 runs, every 2 points" in out
+
+
+def test_settings_mode_builds_the_default_s_mirror_variant_from_mirrored_shapes(tmp_path, capsys):
+    """``--settings``: the mirror images' descriptors (histograms and height functions) come
+    from the mirrored shapes' direct ones, so setting ``on-16`` is the default's own matrix."""
+    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
+
+    from geoshape.contour.methods import contour_tracing
+    from geoshape.contour.retrieval import load_contours, shape_distance_matrix
+    from geoshape.io.datasets import read_labels
+
+    folder = tmp_path / "sil"
+    generate_silhouettes(folder, per_class=2, classes=("person", "star", "crab"), seed=2, size=96)
+    parser = argparse.ArgumentParser()
+    mirror2d.add_arguments(parser)
+    work = tmp_path / "work"
+    args = parser.parse_args(["--matrix-dir", str(work), "--sets", f"tiny={folder}",
+                              "--settings", "off,on-16", "--n-jobs", "1", "--no-write"])
+    assert mirror2d.run(args) == 0
+    assert "2D mirror-aware matching" in capsys.readouterr().out
+    stem = mirror2d.matrix_cache_name("tiny", "default")
+    D = np.load(work / f"{stem}-mirror-on-16.npy")
+    contours = load_contours([it.path for it in read_labels(folder)], **contour_tracing("default"))
+    np.testing.assert_allclose(D, shape_distance_matrix(contours, backend="serial"), rtol=1e-12, atol=1e-15)

@@ -121,7 +121,9 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
             mirrored = contour_signatures([mirror_contour(P) for P in contours], "default",
                                           mirror=False, n_jobs=n_jobs)
             t2 = time.perf_counter()
-            sigs = [ContourSignature(a.X, a.s, b.X) for a, b in zip(direct, mirrored, strict=True)]
+            # the mirror image's direct descriptors are the mirror variant (height functions too)
+            sigs = [ContourSignature(a.X, a.s, b.X, a.H, b.H, a.complexity)
+                    for a, b in zip(direct, mirrored, strict=True)]
             desc = {"direct": t1 - t0, "mirror": t2 - t1}
         mirror, n_starts = SETTINGS[setting]
         print(f"[{name}] mirror {setting} …", flush=True)

@@ -16,16 +16,22 @@ name           descriptor                               point cost   matcher
                units) + 0.005 geodesic shape context,                orientations (mirror images)
                on 144 contour points smoothed by a
                Gaussian of 0.25 % of the perimeter,
-               parts of ≥ 1 % of the largest joined
+               parts of ≥ 1 % of the largest joined;
+               plus ¼ × the height-functions            city-block   cyclic DP (4 starts per
+               dissimilarity of Wang et al. (2012),                  orientation), both
+               matched on its own (:func:`height_costs`)             orientations
 ``default_nomirror`` the same, direct orientation only
-``default_100pt`` the same on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned, the default before)
-``default_128pt`` the same on 128 points, parts of ≥ 0.5 % joined (pinned: the default of 2026-12-05, evening)
+``default_144pt`` the default of 2026-12-05 (night) to 12-06: the same without the height functions (pinned)
+``default_100pt`` ``default_144pt`` on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned,
+               the default before)
+``default_128pt`` ``default_144pt`` on 128 points, parts of ≥ 0.5 % joined (pinned: the default of
+               2026-12-05, evening)
 ``default_mean`` the same with distances in mean units (the papers')
 ``default_median`` the default of 2026-12-05 (½ shape context), pinned (a cross-validation candidate)
 ``default_2026_11`` the default of 2026-12-01 to 12-05: 4 starts per orientation (kept under this name)
 ``default_hf`` ``default_2026_11`` + 3 × height functions (Wang et al. 2012), a cross-validation candidate
-``default_heights`` the default + ¼ × the height-functions dissimilarity of Wang et al. (2012),
-               matched on its own (a cross-validation candidate; :func:`height_costs`)
+``default_heights`` ``default_144pt`` + ¼ × the height-functions dissimilarity: the same as
+               ``default`` (its name in the cross-validation)
 ``height_functions`` height functions alone  squared L2   cyclic DP, both orientations
 ============== ======================================== ============ ===========================
 
@@ -156,8 +162,8 @@ _DEFAULT_PARTS = _PARTS_2026_12_05
 
 #: The default of 2026-12-05 (night) to 12-06 (``default_144pt``; the default below adds the
 #: height-functions term to it): histogram distances in median units, shape context at a
-#: quarter of the inner-distance shape context's weight, 16 cyclic-DP starts per orientation (32 in all with the
-#: mirror image), each the best worst-case bull's-eye over the nine dev collections within
+#: quarter of the inner-distance shape context's weight, 16 cyclic-DP starts per orientation
+#: (32 in all with the mirror image), each the best worst-case bull's-eye over the nine dev collections within
 #: twice the matrix time of default_2026_11 (docs/RESULTS.md, "2D default method:
 #: cross-validated choice": 8 starts tie 16 within 0.05 points at a lower mean mAP; shape
 #: context 0.125 ties 0.25 at a lower mean mAP; skip cost 0.3 and gsc weight 0.005 lose when
