@@ -35,16 +35,22 @@ def test_rule_uses_the_reference_for_time():
     assert mirror2d.choose({"ref": (95.0, 0.92, 10.0), "b": (95.03, 0.91, 5.0)}, "ref") == "ref"
 
 
-def test_methods_mode_runs_and_caches(tmp_path, capsys):
+def _tiny_args(tmp_path, *options, per_class=3, seed=1):
+    """A 3-class generated collection and ``bench mirror2d`` arguments on it (one worker,
+    nothing written): ``(folder, args)``."""
     from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
 
     folder = tmp_path / "sil"
-    generate_silhouettes(folder, per_class=3, classes=("person", "star", "crab"), seed=1, size=96)
+    generate_silhouettes(folder, per_class=per_class, classes=("person", "star", "crab"), seed=seed,
+                         size=96)
     parser = argparse.ArgumentParser()
     mirror2d.add_arguments(parser)
-    args = parser.parse_args(["--matrix-dir", str(tmp_path / "work"), "--sets", f"tiny={folder}",
-                              "--methods", "height_functions,height_functions+skip0.1@64",
-                              "--n-jobs", "1", "--no-write"])
+    return folder, parser.parse_args(["--matrix-dir", str(tmp_path / "work"), "--sets",
+                                      f"tiny={folder}", *options, "--n-jobs", "1", "--no-write"])
+
+
+def test_methods_mode_runs_and_caches(tmp_path, capsys):
+    _, args = _tiny_args(tmp_path, "--methods", "height_functions,height_functions+skip0.1@64")
     assert mirror2d.run(args) == 0
     out = capsys.readouterr().out
     assert "2D default method: cross-validated choice" in out and "**chosen**" in out
@@ -110,15 +116,8 @@ def test_the_default_s_matrix_digest_is_pinned():
 
 
 def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_path, capsys):
-    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
-
-    folder = tmp_path / "sil"
-    generate_silhouettes(folder, per_class=3, classes=("person", "star", "crab"), seed=1, size=96)
-    parser = argparse.ArgumentParser()
-    mirror2d.add_arguments(parser)
-    args = parser.parse_args(["--matrix-dir", str(tmp_path / "work"), "--sets", f"tiny={folder}",
-                              "--methods", "default@64,default_heights+hweight=0.5+hgroups=11@64",
-                              "--section", "default2d-trial", "--n-jobs", "1", "--no-write"])
+    _, args = _tiny_args(tmp_path, "--methods", "default@64,default_heights+hweight=0.5+hgroups=11@64",
+                         "--section", "default2d-trial")
     assert mirror2d.run(args) == 0
     out = capsys.readouterr().out
     assert "## 2D default method: cross-validated choice (default2d-trial)" in out
@@ -129,19 +128,12 @@ def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_pa
 def test_settings_mode_builds_the_default_s_mirror_variant_from_mirrored_shapes(tmp_path, capsys):
     """``--settings``: the mirror images' descriptors (histograms and height functions) come
     from the mirrored shapes' direct ones, so setting ``on-16`` is the default's own matrix."""
-    from geoshape_datasets_gen.silhouettes2d import generate_silhouettes
-
     from geoshape.contour.methods import contour_tracing
     from geoshape.contour.retrieval import load_contours, shape_distance_matrix
     from geoshape.io.datasets import read_labels
 
-    folder = tmp_path / "sil"
-    generate_silhouettes(folder, per_class=2, classes=("person", "star", "crab"), seed=2, size=96)
-    parser = argparse.ArgumentParser()
-    mirror2d.add_arguments(parser)
+    folder, args = _tiny_args(tmp_path, "--settings", "off,on-16", per_class=2, seed=2)
     work = tmp_path / "work"
-    args = parser.parse_args(["--matrix-dir", str(work), "--sets", f"tiny={folder}",
-                              "--settings", "off,on-16", "--n-jobs", "1", "--no-write"])
     assert mirror2d.run(args) == 0
     assert "2D mirror-aware matching" in capsys.readouterr().out
     stem = mirror2d.matrix_cache_name("tiny", "default")

@@ -236,15 +236,22 @@ def cyclic_dp_gram_kernel(G, n1, n2, base, skip, totals, starts):
     ``G (B, V, M, N)``, ``n1 (N,)``, ``n2 (B, V, M)``.
     """
     B, V, M, N = G.shape
-    jl = skip * np.arange(M + 1).astype(np.float64)
-    D, diag, acc, cells = np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N)
-    Cb = np.empty((V, N, M))
+    jl, D, diag, acc, cells, Cb = _workspace(V, N, M, skip)
     for b in range(B):
         for v in range(V):
             for j in range(M):
                 for i in range(N):
                     Cb[v, i, j] = max((n1[i] + n2[b, v, j]) - 2.0 * G[b, v, j, i], 0.0)
         _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells)
+
+
+@numba.njit(cache=True, nogil=True)
+def _workspace(V, N, M, skip):
+    """Buffers of the per-pair kernels: skip ramp ``jl (M + 1,)``, DP rows, diagonal sums and
+    one pair's ``(V, N, M)`` cost matrices."""
+    jl = skip * np.arange(M + 1).astype(np.float64)
+    return (jl, np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N),
+            np.empty((V, N, M)))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -301,9 +308,7 @@ def cyclic_dp_l1_kernel(H1, H2, base, skip, totals, starts):
     """
     B, V, M, K = H2.shape
     N = H1.shape[0]
-    jl = skip * np.arange(M + 1).astype(np.float64)
-    D, diag, acc, cells = np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N)
-    Cb = np.empty((V, N, M))
+    jl, D, diag, acc, cells, Cb = _workspace(V, N, M, skip)
     for b in range(B):
         for v in range(V):
             for i in range(N):
