@@ -235,13 +235,8 @@ def cyclic_dp_gram_costs(G: np.ndarray, n1: np.ndarray, n2: np.ndarray, *, skip_
     G = np.asarray(G)
     G = np.ascontiguousarray(G, dtype=np.float32 if G.dtype == np.float32 else np.float64)
     B, V, M, N = G.shape
-    k = min(n_starts, V * M)
-    totals = np.empty((B, k))
-    starts = np.empty((B, k), dtype=np.int64)
-    cyclic_dp_gram_kernel(G, np.ascontiguousarray(n1, dtype=np.float64),
-                          np.ascontiguousarray(n2, dtype=np.float64), _diagonal_base(N, M),
-                          float(skip_cost), totals, starts)
-    return totals.min(axis=1) / ((N + M) / 2.0)
+    inputs = (G, np.ascontiguousarray(n1, dtype=np.float64), np.ascontiguousarray(n2, dtype=np.float64))
+    return _best_costs(cyclic_dp_gram_kernel, inputs, (B, V, N, M), skip_cost, n_starts)
 
 
 def cyclic_dp_l1_costs(H1: np.ndarray, H2s: np.ndarray, *, skip_cost: float,
@@ -259,11 +254,17 @@ def cyclic_dp_l1_costs(H1: np.ndarray, H2s: np.ndarray, *, skip_cost: float,
     H1 = np.ascontiguousarray(H1, dtype=np.float64)
     H2s = np.ascontiguousarray(H2s, dtype=np.float64)
     B, V, M, _ = H2s.shape
-    N = len(H1)
+    return _best_costs(cyclic_dp_l1_kernel, (H1, H2s), (B, V, len(H1), M), skip_cost, n_starts)
+
+
+def _best_costs(kernel, inputs: tuple, shape: tuple, skip_cost: float, n_starts: int) -> np.ndarray:
+    """Run a per-pair compiled DP ``kernel(*inputs, base, skip, totals, starts)`` on a batch of
+    ``shape = (B, V, N, M)`` and return each pair's best total divided by ``(N + M) / 2``."""
+    B, V, N, M = shape
     k = min(n_starts, V * M)
     totals = np.empty((B, k))
     starts = np.empty((B, k), dtype=np.int64)
-    cyclic_dp_l1_kernel(H1, H2s, _diagonal_base(N, M), float(skip_cost), totals, starts)
+    kernel(*inputs, _diagonal_base(N, M), float(skip_cost), totals, starts)
     return totals.min(axis=1) / ((N + M) / 2.0)
 
 

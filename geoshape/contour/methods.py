@@ -360,6 +360,8 @@ def _check_heights(term: dict) -> None:
     keys = {"weight", "descriptor", "skip_cost", "n_starts", "step"}
     if not isinstance(term, dict) or set(term) != keys:
         raise InvalidOptionError(f"heights must be a dict with keys {sorted(keys)}, got {term!r}")
+    if not isinstance(term["descriptor"], dict) or "n_groups" not in term["descriptor"]:
+        raise InvalidOptionError(f"heights descriptor must name n_groups, got {term['descriptor']!r}")
     checks = (("weight", term["weight"] >= 0, "≥ 0"), ("skip_cost", term["skip_cost"] > 0, "> 0"),
               ("n_starts", int(term["n_starts"]) == term["n_starts"] >= 1, "an integer ≥ 1"),
               ("step", int(term["step"]) == term["step"] >= 1, "an integer ≥ 1"))
@@ -433,7 +435,7 @@ def _height_signature(P: np.ndarray, spec: dict):
     term = spec["heights"]
     Ps = np.ascontiguousarray(P[::term["step"]])
     options = dict(term["descriptor"])
-    options["n_groups"] = min(options.get("n_groups", 25), len(Ps) - 1)
+    options["n_groups"] = min(options["n_groups"], len(Ps) - 1)
     H = height_functions(Ps, **options)
     Hm = height_functions(mirror_contour(Ps), **options) if spec["mirror"] else None
     n = len(H)
