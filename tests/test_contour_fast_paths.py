@@ -1,9 +1,9 @@
 """The compiled fast paths of 2D retrieval equal the NumPy reference implementations, bit for bit.
 
 The references below are the NumPy formulations the compiled kernels replaced (cyclic DP with
-its start ranking, the cost matrices of the default method, the chord-crossing test of the
-visibility graph); the kernels repeat their floating-point operations, so the results are
-compared with ``==``, not a tolerance.
+its start ranking, the cost matrices of the default method, the chord-crossing and
+on-boundary tests of the visibility graph); the kernels repeat their floating-point
+operations, so the results are compared with ``==``, not a tolerance.
 """
 
 from __future__ import annotations
@@ -84,6 +84,17 @@ def reference_blocked_chords(P: np.ndarray, eps: float) -> np.ndarray:
     incident = (ek == iu[:, None]) | ((ek + 1) % N == iu[:, None]) | (ek == ju[:, None]) | (
         (ek + 1) % N == ju[:, None])
     return (proper & ~incident).any(axis=1)
+
+
+def reference_distance_to_polygon(X: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Distance from each point of ``X (M, 2)`` to the nearest edge of the closed polygon ``P``."""
+    A, B = P, np.roll(P, -1, axis=0)
+    AB = B - A
+    denom = np.maximum((AB**2).sum(axis=1), 1e-300)
+    x = X[:, None, :]
+    t = np.clip(((x - A[None]) * AB[None]).sum(axis=2) / denom[None], 0.0, 1.0)
+    proj = A[None] + t[..., None] * AB[None]
+    return np.sqrt(((x - proj) ** 2).sum(axis=2)).min(axis=1)
 
 
 # --- inputs ------------------------------------------------------------------------------------
@@ -197,6 +208,39 @@ def test_visibility_chords_equal_numpy_reference(seed, silhouette_contours):
         eps = 1e-6 * float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
         iu, ju = np.triu_indices(len(P), k=1)
         assert np.array_equal(blocked_chords(P, iu, ju, eps), reference_blocked_chords(P, eps))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_near_polygon_equals_numpy_reference(seed, silhouette_contours):
+    from geoshape.contour._kernels import near_polygon
+
+    rng = np.random.default_rng(seed)
+    P = silhouette_contours[seed]
+    # chord midpoints (some on straight runs of the boundary), random points, the vertices
+    i, j = rng.integers(0, len(P), (2, 400))
+    X = np.vstack([0.5 * (P[i] + P[j]), rng.uniform(P.min(0), P.max(0), (400, 2)), P])
+    dist = reference_distance_to_polygon(X, P)
+    for tol in (1e-9, 0.5, float(np.median(dist))):
+        assert np.array_equal(near_polygon(X, P, tol), dist <= tol)
+    assert near_polygon(P, P, 0.0).all()  # every vertex is on the boundary
+
+
+def test_mirror_signature_reuses_inner_distances_exactly(silhouette_contours):
+    """The mirror image's inner distances are the shape's re-indexed: the default's signature
+    of a shape carries the same mirror embedding as the mirror image computed from scratch."""
+    from geoshape.contour.inner_distance import inner_distances, mirrored_inner_distances
+    from geoshape.contour.methods import _embed
+    from geoshape.geometry.contour import mirror_contour
+
+    spec = method_spec("default")
+    for P in silhouette_contours:
+        M = mirror_contour(P)
+        D, hop = mirrored_inner_distances(*inner_distances(P))
+        D_ref, hop_ref = inner_distances(M)
+        assert np.array_equal(D, D_ref) and np.array_equal(hop, hop_ref)
+        sig = contour_signature(P, spec=spec)
+        assert np.array_equal(sig.X_mirror, _embed(M, spec))
+        assert np.array_equal(sig.X, _embed(P, spec))
 
 
 def test_pairwise_sum_is_numpys():

@@ -1,5 +1,6 @@
 """Compiled (numba) kernels: the cyclic DP matcher (:mod:`geoshape.contour.matching`) and the
-segment-crossing test of the visibility graph (:mod:`geoshape.contour.inner_distance`).
+segment-crossing and on-boundary tests of the visibility graph
+(:mod:`geoshape.contour.inner_distance`).
 
 Imported lazily (numba takes a moment to import, and the kernels compile on first use; the
 machine code is cached in ``__pycache__``). The kernels repeat the floating-point operations
@@ -296,6 +297,30 @@ def blocked_chords(P, iu, ju, eps):
                 blocked[p] = True
                 break
     return blocked
+
+
+@numba.njit(cache=True, nogil=True)
+def near_polygon(X, P, tol):
+    """``near[m]``: point ``X[m]`` lies within ``tol`` of an edge ``P[k] P[k + 1]`` of the closed
+    polygon ``P (N, 2)``. The distance is computed as the NumPy formulation it replaces
+    (projection parameter clipped to [0, 1], then the Euclidean distance to the projection).
+    O(M · N), stops at the first edge close enough."""
+    N = P.shape[0]
+    near = np.zeros(X.shape[0], dtype=np.bool_)
+    for m in range(X.shape[0]):
+        x0, x1 = X[m, 0], X[m, 1]
+        for k in range(N):
+            k1 = k + 1 if k + 1 < N else 0
+            a0, a1 = P[k, 0], P[k, 1]
+            e0, e1 = P[k1, 0] - a0, P[k1, 1] - a1
+            denom = max(e0 * e0 + e1 * e1, 1e-300)
+            t = ((x0 - a0) * e0 + (x1 - a1) * e1) / denom
+            t = min(max(t, 0.0), 1.0)
+            d0, d1 = x0 - (a0 + t * e0), x1 - (a1 + t * e1)
+            if np.sqrt(d0 * d0 + d1 * d1) <= tol:
+                near[m] = True
+                break
+    return near
 
 
 @numba.njit(cache=True, nogil=True)

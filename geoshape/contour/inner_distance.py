@@ -16,7 +16,7 @@ import numpy as np
 from geoshape.contour.shape_context import contour_tangent_angles, log_polar_histograms
 from geoshape.io.validate import check_contour
 
-__all__ = ["visibility_graph", "inner_distances", "inner_distance_shape_context"]
+__all__ = ["visibility_graph", "inner_distances", "mirrored_inner_distances", "inner_distance_shape_context"]
 
 
 def visibility_graph(P, *, tol: float = 1e-6) -> np.ndarray:
@@ -36,17 +36,15 @@ def visibility_graph(P, *, tol: float = 1e-6) -> np.ndarray:
     Notes
     -----
     O(N³) time at worst (every pair against every edge, in compiled loops that stop at the
-    first crossing), O(N²) memory.
+    first crossing or the first edge near a midpoint), O(N²) memory.
     """
     from matplotlib.path import Path
 
-    from geoshape.contour._kernels import blocked_chords
+    from geoshape.contour._kernels import blocked_chords, near_polygon
 
     P = check_contour(P)
     N = len(P)
-    A = P
-    Bp = np.roll(P, -1, axis=0)  # edge k: A[k] -> Bp[k]
-    L = float(np.linalg.norm(Bp - A, axis=1).sum())
+    L = float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
     eps = tol * L
     iu, ju = np.triu_indices(N, k=1)
     S0, S1 = P[iu], P[ju]  # (M, 2)
@@ -59,7 +57,7 @@ def visibility_graph(P, *, tol: float = 1e-6) -> np.ndarray:
     inside = path.contains_points(mid[cand])
     # Midpoints on the boundary itself (e.g. along a straight part) count as inside.
     rest = cand[~inside]
-    on_boundary = _distance_to_polygon(mid[rest], A, Bp) <= 2 * eps + 1e-12
+    on_boundary = near_polygon(np.ascontiguousarray(mid[rest]), np.ascontiguousarray(P), 2 * eps + 1e-12)
     ok[rest[~on_boundary]] = False
     vis = np.zeros((N, N), dtype=bool)
     vis[iu, ju] = ok
@@ -68,20 +66,6 @@ def visibility_graph(P, *, tol: float = 1e-6) -> np.ndarray:
     vis[np.arange(N), nxt] = True
     vis[nxt, np.arange(N)] = True
     return vis
-
-
-def _distance_to_polygon(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Distance from each point of ``X (M, 2)`` to the nearest edge ``A[k]B[k]``."""
-    out = np.empty(len(X))
-    AB = B - A
-    denom = np.maximum((AB**2).sum(axis=1), 1e-300)
-    step = max(1, 200000 // len(A))
-    for s in range(0, len(X), step):
-        x = X[s:s + step, None, :]
-        t = np.clip(((x - A[None]) * AB[None]).sum(axis=2) / denom[None], 0.0, 1.0)
-        proj = A[None] + t[..., None] * AB[None]
-        out[s:s + step] = np.sqrt(((x - proj) ** 2).sum(axis=2)).min(axis=1)
-    return out
 
 
 def inner_distances(P) -> tuple[np.ndarray, np.ndarray]:
@@ -119,21 +103,35 @@ def inner_distances(P) -> tuple[np.ndarray, np.ndarray]:
     return D, first_hop.astype(np.int64)
 
 
+def mirrored_inner_distances(D: np.ndarray, first_hop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`inner_distances` of ``mirror_contour(P)`` from those of ``P``, re-indexed. O(N²).
+
+    A reflection keeps every length and the visibility of every pair, so the mirror image has
+    the same shortest paths; its point ``i`` is point ``σ(i) = (−i) mod N`` of ``P``
+    (:func:`geoshape.geometry.contour.mirror_contour`), and ``σ`` is its own inverse.
+    """
+    N = len(D)
+    sigma = (-np.arange(N)) % N
+    return D[np.ix_(sigma, sigma)], sigma[first_hop[np.ix_(sigma, sigma)]]
+
+
 def inner_distance_shape_context(P, *, n_r: int = 8, n_theta: int = 12, r_inner: float = 0.125,
-                                 r_outer: float = 2.0, normalize_by: str = "mean") -> np.ndarray:
+                                 r_outer: float = 2.0, normalize_by: str = "mean",
+                                 inner: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Inner-distance shape context of every point of a contour.
 
     Log-polar histograms (as :func:`geoshape.contour.shape_context.shape_context`) of
     the inner distances (normalised by their mean, as in the paper, or with
     ``normalize_by="median"`` by their median) and inner angles (first path segment, measured
-    from the tangent at the point).
+    from the tangent at the point). ``inner``: the ``(D, first_hop)`` of :func:`inner_distances`
+    when already known (the mirror image's: :func:`mirrored_inner_distances`).
 
     Returns
     -------
     H : (N, n_r·n_theta) float64, rows sum to 1.
     """
     P = check_contour(P)
-    D, hop = inner_distances(P)
+    D, hop = inner_distances(P) if inner is None else inner
     direction = P[hop] - P[:, None, :]  # (N, N, 2)
     angle = np.arctan2(direction[..., 1], direction[..., 0]) - contour_tangent_angles(P)[:, None]
     return log_polar_histograms(D, angle, n_r=n_r, n_theta=n_theta, r_inner=r_inner,

@@ -389,10 +389,12 @@ class ContourSignature:
     complexity: float = 0.0
 
 
-def _embed(P: np.ndarray, spec: dict) -> np.ndarray:
+def _embed(P: np.ndarray, spec: dict, inner: tuple | None = None) -> np.ndarray:
+    """The embedding ``X (N, K)`` of ``P``; ``inner``: its inner distances, if known (``idsc``)."""
     blocks = []
     for name, weight, transform, options in spec["parts"]:
-        H = np.asarray(POINT_DESCRIPTORS[name](P, **options), dtype=np.float64)
+        known = {"inner": inner} if name == "idsc" and inner is not None else {}
+        H = np.asarray(POINT_DESCRIPTORS[name](P, **options, **known), dtype=np.float64)
         if spec["metric"] == "chi2":
             blocks.append(H)
             continue
@@ -406,15 +408,22 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
     """Compute the per-shape signature of ``P`` for ``method``.
 
     Cost: the descriptors' (O(N³) for ``idsc``'s visibility graph, O(N²) for shape context,
-    O(N·B) for ``gsc``), twice with ``mirror``.
+    O(N·B) for ``gsc``), twice with ``mirror`` — except the inner distances, which a
+    reflection keeps: the mirror image's are the shape's, re-indexed.
     """
+    from geoshape.contour.inner_distance import inner_distances, mirrored_inner_distances
     from geoshape.geometry.contour import arc_length, mirror_contour, perimeter
 
     spec = spec if spec is not None else method_spec(method)
     P = check_contour(P, name=name)
     s = arc_length(P) / perimeter(P)
-    X = _embed(P, spec)
-    Xm = _embed(mirror_contour(P), spec) if spec["mirror"] else None
+    uses_inner = spec["mirror"] and any(part[0] == "idsc" for part in spec["parts"])
+    inner = inner_distances(P) if uses_inner else None
+    X = _embed(P, spec, inner)
+    Xm = None
+    if spec["mirror"]:
+        inner_mirror = None if inner is None else mirrored_inner_distances(*inner)
+        Xm = _embed(mirror_contour(P), spec, inner_mirror)
     if not spec.get("heights"):
         return ContourSignature(X, s, Xm)
     H, Hm, complexity = _height_signature(P, spec)
