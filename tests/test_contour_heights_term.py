@@ -78,6 +78,24 @@ def test_heights_term_is_invariant_to_similarity_start_point_and_mirror(shapes):
     assert (h[3:] > 1e-3).all()
 
 
+def test_all_phases_make_the_term_independent_of_the_start_point(shapes):
+    """Sampled from one phase, a copy shifted by an odd number of points reads the other half of
+    the samples and keeps a residue; matched against every phase of the other shape, it is 0."""
+    P = shapes[1]
+    copies = [np.roll(P, 1, axis=0), np.roll(_similar(P), 7, axis=0),
+              np.roll(mirror_contour(P), 5, axis=0)]
+    for all_phases, step in ((False, 2), (True, 2), (True, 3)):
+        spec = _spec(n_groups=12, step=step, all_phases=all_phases)
+        sig = contour_signature(P, spec=spec)
+        assert sig.H.shape[0] == (step if all_phases else 1)
+        stack = stack_signatures([contour_signature(Q, spec=spec) for Q in copies + shapes[2:]])
+        h = height_costs(sig, stack, spec)
+        if all_phases:
+            assert np.allclose(h[:3], 0.0, atol=1e-9) and (h[3:] > 1e-3).all()
+        else:
+            assert (h[:3] > 1e-4).all()  # the residue the phases remove
+
+
 def test_the_term_adds_weight_times_height_costs_to_the_distance(shapes):
     base, spec = method_spec("default_144pt"), _spec(weight=0.5, n_groups=12)
     sig_b = [contour_signature(P, spec=base) for P in shapes]
@@ -103,7 +121,7 @@ def test_complexity_is_zero_for_a_circle_and_grows_with_detail(shapes):
 
 @pytest.mark.parametrize("bad, match", [
     (dict(weight=-1.0), "weight"), (dict(skip_cost=0.0), "skip_cost"), (dict(n_starts=0), "n_starts"),
-    (dict(step=1.5), "step"),
+    (dict(step=1.5), "step"), (dict(all_phases="yes"), "all_phases"),
 ])
 def test_bad_heights_terms_are_rejected_up_front(bad, match):
     term = dict(_heights_term(1.0), **bad)
@@ -121,8 +139,11 @@ def test_variant_modifiers_of_the_heights_term():
     term = over["heights"]
     assert term["weight"] == 0.25 and term["skip_cost"] == 0.3
     assert term["descriptor"] == dict(base["descriptor"], n_groups=11)
-    with pytest.raises(InvalidOptionError, match="bad modifier"):
-        parse_variant("default_heights+hcolour=2")
+    assert "all_phases" not in term
+    assert parse_variant("default_heights+hphases=1")[2]["heights"]["all_phases"] is True
+    for bad in ("default_heights+hcolour=2", "default_heights+hphases=2"):
+        with pytest.raises(InvalidOptionError, match="bad modifier"):
+            parse_variant(bad)
 
 
 def test_coarse_to_fine_refines_with_the_whole_distance(shapes):

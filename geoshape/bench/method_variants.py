@@ -67,7 +67,8 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
             pass
         raise InvalidOptionError(f"{method!r}: bad modifier {'+' + mod!r} (use +skipX with X > 0, "
                                  "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
-                                 "+hweight=X, +hskip=X, +hgroups=K, +hstep=K, +hstarts=K for a "
+                                 "+hweight=X, +hskip=X, +hgroups=K, +hstep=K, +hstarts=K, "
+                                 "+hphases=0|1 for a "
                                  "method with a heights term, "
                                  f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g})")
     if at and not (n.isdigit() and int(n) >= 8):
@@ -75,9 +76,17 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides
 
 
+def _flag(value: str) -> bool:
+    """``"1"`` → True, ``"0"`` → False; anything else raises ``ValueError``."""
+    if value not in ("0", "1"):
+        raise ValueError(value)
+    return value == "1"
+
+
 #: ``+hNAME=X`` modifiers of a method's ``heights`` term: name -> (key, type).
 _HEIGHTS_MODIFIERS = {"weight": ("weight", float), "skip": ("skip_cost", float),
-                      "groups": ("n_groups", int), "step": ("step", int), "starts": ("n_starts", int)}
+                      "groups": ("n_groups", int), "step": ("step", int), "starts": ("n_starts", int),
+                      "phases": ("all_phases", _flag)}
 
 
 def _with_height_option(term: dict, name: str, value: str) -> dict:

@@ -197,14 +197,17 @@ def _pinned_2026_12_05(summary: str, **tracing) -> dict:
 
 
 def _heights_term(weight: float, *, n_groups: int = 23, skip_cost: float = 0.15, n_starts: int = 4,
-                  step: int = 2) -> dict:
+                  step: int = 2, all_phases: bool = False) -> dict:
     """A ``heights`` term: ``weight`` × the height-functions dissimilarity (:func:`height_costs`)
     of every ``step``-th contour point, ``n_groups`` runs per point weighted ``1 / r`` and
     scaled to [−1, 1] (:func:`geoshape.contour.descriptors.height_functions` with
     ``decay="inverse"``, ``scale="max"``), cyclic DP with ``skip_cost`` and ``n_starts`` starts
-    per orientation."""
-    return dict(weight=weight, descriptor=dict(n_groups=n_groups, decay="inverse", scale="max"),
+    per orientation. With ``all_phases`` the other shape is sampled from each of its ``step``
+    starting points and the best is kept, so the term no longer depends on where each tracing
+    starts (the key is left out when false: specs without it keep their cache digests)."""
+    term = dict(weight=weight, descriptor=dict(n_groups=n_groups, decay="inverse", scale="max"),
                 skip_cost=skip_cost, n_starts=n_starts, step=step)
+    return dict(term, all_phases=True) if all_phases else term
 
 
 #: The default since 2026-12-06: ``default_144pt`` plus a quarter of the height-functions
@@ -357,9 +360,12 @@ def method_spec(method: str, **overrides) -> dict:
 
 def _check_heights(term: dict) -> None:
     """Reject a malformed ``heights`` term, naming the bad entry."""
-    keys = {"weight", "descriptor", "skip_cost", "n_starts", "step"}
-    if not isinstance(term, dict) or set(term) != keys:
-        raise InvalidOptionError(f"heights must be a dict with keys {sorted(keys)}, got {term!r}")
+    keys, optional = {"weight", "descriptor", "skip_cost", "n_starts", "step"}, {"all_phases"}
+    if not isinstance(term, dict) or not keys <= set(term) <= keys | optional:
+        raise InvalidOptionError(f"heights must be a dict with keys {sorted(keys)} (and optionally "
+                                 f"{sorted(optional)}), got {term!r}")
+    if not isinstance(term.get("all_phases", False), bool):
+        raise InvalidOptionError(f"heights all_phases must be True or False, got {term['all_phases']!r}")
     if not isinstance(term["descriptor"], dict) or "n_groups" not in term["descriptor"]:
         raise InvalidOptionError(f"heights descriptor must name n_groups, got {term['descriptor']!r}")
     checks = (("weight", term["weight"] >= 0, "≥ 0"), ("skip_cost", term["skip_cost"] > 0, "> 0"),
@@ -376,9 +382,11 @@ class ContourSignature:
 
     ``X (N, K)``: embedded descriptors; ``s (N,)``: arc-length positions / perimeter;
     ``X_mirror``: the same for the mirror image (``None`` unless the method uses it).
-    For a method with a ``heights`` term: ``H (N', G)`` the height functions of every
-    ``step``-th point, ``H_mirror`` those of the mirror image (or ``None``) and
-    ``complexity`` the mean city-block distance between the rows of ``H`` (0 otherwise).
+    For a method with a ``heights`` term: ``H (R, N', G)`` the height functions of every
+    ``step``-th point, from each of ``R`` starting phases (``R = step`` with the term's
+    ``all_phases``, else 1: phase 0), ``H_mirror`` those of the mirror image (or ``None``) and
+    ``complexity`` the mean city-block distance between the rows of each phase's ``H``, averaged
+    over the phases (0 without the term).
     """
 
     X: np.ndarray
@@ -431,24 +439,31 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
 
 
 def _height_signature(P: np.ndarray, spec: dict):
-    """``(H, H_mirror, complexity)`` of the ``heights`` term: height functions of every
-    ``step``-th point (and of the mirror image of those points), and the shape's complexity,
-    the mean city-block distance between its own rows. O(N'²·G). A contour of ``N'`` points
-    has ``N' − 1`` heights per point, so on short contours the runs are capped at that many
-    (each height its own run)."""
+    """``(H, H_mirror, complexity)`` of the ``heights`` term (:class:`ContourSignature`): height
+    functions of every ``step``-th point from each phase (and of the mirror image of those
+    points), and the shape's complexity. O(R·N'²·G). A contour of ``N'`` points has ``N' − 1``
+    heights per point, so on short contours the runs are capped at that many (each height its
+    own run). With ``all_phases`` every phase takes ``N // step`` points (equal lengths)."""
     from scipy.spatial.distance import pdist
 
     from geoshape.contour.descriptors import height_functions
     from geoshape.geometry.contour import mirror_contour
 
     term = spec["heights"]
-    Ps = np.ascontiguousarray(P[::term["step"]])
+    step = term["step"]
+    if term.get("all_phases"):
+        samples = [P[r + step * np.arange(len(P) // step)] for r in range(step)]
+    else:
+        samples = [P[::step]]
     options = dict(term["descriptor"])
-    options["n_groups"] = min(options["n_groups"], len(Ps) - 1)
-    H = height_functions(Ps, **options)
-    Hm = height_functions(mirror_contour(Ps), **options) if spec["mirror"] else None
-    n = len(H)
-    complexity = 2.0 * float(pdist(H, "cityblock").sum()) / (n * n)  # mean over all n² pairs
+    options["n_groups"] = min(options["n_groups"], len(samples[0]) - 1)
+    H = np.stack([height_functions(np.ascontiguousarray(Ps), **options) for Ps in samples])
+    Hm = None
+    if spec["mirror"]:
+        Hm = np.stack([height_functions(mirror_contour(Ps), **options) for Ps in samples])
+    n = H.shape[1]
+    # mean city-block distance over all n² ordered pairs of rows, averaged over the phases
+    complexity = float(np.mean([2.0 * float(pdist(Hr, "cityblock").sum()) / (n * n) for Hr in H]))
     return H, Hm, complexity
 
 
@@ -487,7 +502,8 @@ class SignatureStack:
     (``V = 2``), stacked once so that one matrix product per query gives the Gram matrices of
     both orientations; ``X (B, M, K)`` and ``X_mirror (B, M, K)`` (or ``None``) are views of it;
     ``s (B, M)``; ``sq_norms (B, V, M)``: squared row norms of ``XV``; with a ``heights``
-    term, ``HV (B, V, M', G)`` the height functions of each orientation and ``complexity (B,)``
+    term, ``HV (B, V·R, M', G)`` the height functions of each orientation's ``R`` phases and
+    ``complexity (B,)``
     (else ``None``).
     """
 
@@ -522,7 +538,7 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
     norms = (XV**2).sum(axis=3)
     HV = complexity = None
     if sigs[0].H is not None:
-        HV = np.stack([[sig.H, sig.H_mirror] if mirror else [sig.H] for sig in sigs])
+        HV = np.stack([np.concatenate([sig.H, sig.H_mirror]) if mirror else sig.H for sig in sigs])
         complexity = np.array([sig.complexity for sig in sigs])
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
                           norms, XV, HV, complexity)
@@ -556,12 +572,13 @@ def height_costs(sig1: ContourSignature, stack: SignatureStack, spec: dict,
                  cols=None) -> np.ndarray:
     """The ``heights`` term of ``spec`` from one signature to stacked ones (or those at
     ``cols``): cyclic DP of the height functions with city-block point costs (both
-    orientations with ``mirror``), divided by the sum of the two shapes' complexities — the
-    dissimilarity of Wang et al. (2012), unit-free. O(B·V·N'²·G + B·n_starts·N'²)."""
+    orientations with ``mirror``; the query's phase 0 against every phase of the others),
+    divided by the sum of the two shapes' complexities — the dissimilarity of Wang et al.
+    (2012), unit-free. O(B·V·N'²·G + B·n_starts·N'²), ``V`` orientations × phases."""
     term = spec["heights"]
     picked = slice(None) if cols is None else np.asarray(cols, dtype=np.int64)
     HV = stack.HV[picked]
-    costs = cyclic_dp_l1_costs(sig1.H, HV, skip_cost=term["skip_cost"],
+    costs = cyclic_dp_l1_costs(sig1.H[0], HV, skip_cost=term["skip_cost"],
                                n_starts=HV.shape[1] * term["n_starts"])
     return costs / np.maximum(sig1.complexity + stack.complexity[picked], 1e-300)
 
