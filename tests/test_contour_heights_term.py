@@ -61,7 +61,8 @@ def test_l1_dp_costs_are_the_dp_of_city_block_cost_matrices():
     C = np.stack([np.stack([cdist(H1, H2[b, v], "cityblock") for v in range(2)]) for b in range(5)])
     for starts in (3, 52):  # 52: every start of both variants (the exact cyclic DP)
         expected = batch_match_costs(C, "dp", skip_cost=0.8, n_starts=starts)
-        assert np.allclose(cyclic_dp_l1_costs(H1, H2, skip_cost=0.8, n_starts=starts), expected,
+        H2T = H2.transpose(0, 1, 3, 2)  # points last
+        assert np.allclose(cyclic_dp_l1_costs(H1, H2T, skip_cost=0.8, n_starts=starts), expected,
                            rtol=1e-12, atol=0)
 
 

@@ -324,22 +324,26 @@ def near_polygon(X, P, tol):
 
 
 @numba.njit(cache=True, nogil=True)
-def cyclic_dp_l1_kernel(H1, H2, base, skip, totals, starts):
+def cyclic_dp_l1_kernel(H1, H2T, base, skip, totals, starts):
     """:func:`cyclic_dp_kernel` on city-block point costs.
 
-    ``C[b, v, i, j] = Σ_k |H1[i, k] − H2[b, v, j, k]|`` is filled pair by pair into a small
-    buffer (no ``(B, V, N, M)`` array is made). ``H1 (N, K)``, ``H2 (B, V, M, K)``.
-    O(B·V·N·M·K) for the costs plus the matcher's O(B·(V·M·N + k·N·M)).
+    ``C[b, v, i, j] = Σ_k |H1[i, k] − H2T[b, v, k, j]|`` (summed over ``k`` in order) is filled
+    pair by pair into a small buffer (no ``(B, V, N, M)`` array is made). ``H1 (N, K)``,
+    ``H2T (B, V, K, M)``: points last, so each row of costs is built by contiguous passes over
+    ``j`` (which the compiler vectorises). O(B·V·N·M·K) for the costs plus the matcher's
+    O(B·(V·M·N + k·N·M)).
     """
-    B, V, M, K = H2.shape
+    B, V, K, M = H2T.shape
     N = H1.shape[0]
     jl, D, diag, acc, cells, Cb = _workspace(V, N, M, skip)
     for b in range(B):
         for v in range(V):
             for i in range(N):
-                for j in range(M):
-                    c = 0.0
-                    for k in range(K):
-                        c += abs(H1[i, k] - H2[b, v, j, k])
-                    Cb[v, i, j] = c
+                row = Cb[v, i]
+                row[:] = 0.0
+                for k in range(K):
+                    a = H1[i, k]
+                    h = H2T[b, v, k]
+                    for j in range(M):
+                        row[j] += abs(a - h[j])
         _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells)

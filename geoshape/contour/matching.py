@@ -239,12 +239,13 @@ def cyclic_dp_gram_costs(G: np.ndarray, n1: np.ndarray, n2: np.ndarray, *, skip_
     return _best_costs(cyclic_dp_gram_kernel, inputs, (B, V, N, M), skip_cost, n_starts)
 
 
-def cyclic_dp_l1_costs(H1: np.ndarray, H2s: np.ndarray, *, skip_cost: float,
+def cyclic_dp_l1_costs(H1: np.ndarray, H2T: np.ndarray, *, skip_cost: float,
                        n_starts: int) -> np.ndarray:
-    """Per-pair DP costs ``(B,)`` for city-block point costs ``Σ_k |H1[i, k] − H2s[b, v, j, k]|``.
+    """Per-pair DP costs ``(B,)`` for city-block point costs ``Σ_k |H1[i, k] − H2T[b, v, k, j]|``.
 
-    ``H1 (N, K)``, ``H2s (B, V, M, K)`` (``V`` variants of each shape, e.g. it and its mirror
-    image; ``n_starts`` counts over all of them). The same values as
+    ``H1 (N, K)``, ``H2T (B, V, K, M)``: the other shapes' descriptors with the points last
+    (``V`` variants of each shape, e.g. it and its mirror image; ``n_starts`` counts over all
+    of them). The same values as
     ``batch_match_costs(C, "dp", …)`` on those cost matrices, which are never stored (each is
     built in a small buffer by the compiled kernel). O(B·V·N·M·K + B·n_starts·N·M).
     """
@@ -252,9 +253,9 @@ def cyclic_dp_l1_costs(H1: np.ndarray, H2s: np.ndarray, *, skip_cost: float,
 
     _check_dp_options(skip_cost, n_starts)
     H1 = np.ascontiguousarray(H1, dtype=np.float64)
-    H2s = np.ascontiguousarray(H2s, dtype=np.float64)
-    B, V, M, _ = H2s.shape
-    return _best_costs(cyclic_dp_l1_kernel, (H1, H2s), (B, V, len(H1), M), skip_cost, n_starts)
+    H2T = np.ascontiguousarray(H2T, dtype=np.float64)
+    B, V, _, M = H2T.shape
+    return _best_costs(cyclic_dp_l1_kernel, (H1, H2T), (B, V, len(H1), M), skip_cost, n_starts)
 
 
 def _best_costs(kernel, inputs: tuple, shape: tuple, skip_cost: float, n_starts: int) -> np.ndarray:

@@ -502,7 +502,8 @@ class SignatureStack:
     (``V = 2``), stacked once so that one matrix product per query gives the Gram matrices of
     both orientations; ``X (B, M, K)`` and ``X_mirror (B, M, K)`` (or ``None``) are views of it;
     ``s (B, M)``; ``sq_norms (B, V, M)``: squared row norms of ``XV``; with a ``heights``
-    term, ``HV (B, V·R, M', G)`` the height functions of each orientation's ``R`` phases and
+    term, ``HV (B, V·R, G, M')`` the height functions of each orientation's ``R`` phases,
+    points last (the layout of :func:`~geoshape.contour.matching.cyclic_dp_l1_costs`), and
     ``complexity (B,)``
     (else ``None``).
     """
@@ -539,6 +540,7 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
     HV = complexity = None
     if sigs[0].H is not None:
         HV = np.stack([np.concatenate([sig.H, sig.H_mirror]) if mirror else sig.H for sig in sigs])
+        HV = np.ascontiguousarray(HV.transpose(0, 1, 3, 2))
         complexity = np.array([sig.complexity for sig in sigs])
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
                           norms, XV, HV, complexity)
