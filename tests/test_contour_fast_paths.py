@@ -156,6 +156,30 @@ def test_pair_costs_equal_cost_matrices_then_dp(silhouette_contours, mirror):
         assert np.array_equal(pair_costs(sig, sigs, spec), ref)
 
 
+def test_gram_kernel_abandons_hopeless_starts_and_keeps_the_minimum():
+    """With only the best total wanted, starts that cannot beat it stop early: their entries
+    are lower bounds above the minimum, which is the same bits as matching every start."""
+    from geoshape.contour._kernels import cyclic_dp_gram_kernel, cyclic_dp_kernel
+    from geoshape.contour.matching import _diagonal_base
+
+    rng = np.random.default_rng(3)
+    X1 = rng.random((64, 6))
+    X2s = np.stack([np.roll(X1, 11 * b, axis=0) + rng.normal(0, 0.01, X1.shape) for b in range(3)])[:, None]
+    n1, n2, G = (X1**2).sum(1), (X2s**2).sum(3), np.matmul(X2s, np.ascontiguousarray(X1.T))
+    C = signature_cost_matrices(X1, X2s[:, 0], "sqeuclidean")[:, None]
+    base, k = _diagonal_base(64, 64), 16
+    pruned, full = np.empty((3, k)), np.empty((3, k))
+    starts_p, starts_f = np.empty((3, k), dtype=np.int64), np.empty((3, k), dtype=np.int64)
+    cyclic_dp_gram_kernel(G, n1, n2, base, 0.3, pruned, starts_p)
+    cyclic_dp_kernel(C, base, 0.3, full, starts_f)
+    assert np.array_equal(starts_p, starts_f)
+    assert np.array_equal(pruned.min(axis=1), full.min(axis=1))
+    abandoned = pruned != full
+    assert abandoned.any()
+    assert (pruned[abandoned] > full.min(axis=1, keepdims=True).repeat(k, 1)[abandoned]).all()
+    assert (pruned <= full).all()  # lower bounds
+
+
 @pytest.mark.parametrize("mirror", [False, True])
 def test_pair_costs_chunks_and_stack_views(mirror):
     """The Gram matrices are made by chunks of pairs into a reused buffer; stacks of any size,

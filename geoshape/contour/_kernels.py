@@ -118,9 +118,14 @@ def _dp_total(Cv, off, skip, jl, D):
 
 
 @numba.njit(cache=True, nogil=True)
-def _dp_total_two(Cv0, off0, Cv1, off1, skip, jl, D0, D1):
+def _dp_total_two(Cv0, off0, Cv1, off1, skip, jl, D0, D1, bound):
     """:func:`_dp_total` of two starts at once: the two running minima are independent
-    dependency chains, so the processor overlaps them (about 1.3x faster than one by one)."""
+    dependency chains, so the processor overlaps them (about 1.3x faster than one by one).
+
+    Early abandoning: every path to the last cell crosses each row, and the costs are ≥ 0, so
+    a total is at least the smallest entry of any row of ``D``. Every 8 rows, when both rows'
+    smallest entries exceed ``bound`` the two starts are abandoned and those (lower bounds
+    above ``bound``) are returned instead of their totals; ``bound = inf`` never abandons."""
     N, M = Cv0.shape
     for j in range(M + 1):
         D0[j] = jl[j]
@@ -141,6 +146,13 @@ def _dp_total_two(Cv0, off0, Cv1, off1, skip, jl, D0, D1):
             D0[j], D1[j] = m0 + jl[j], m1 + jl[j]
             col0 = col0 + 1 if col0 + 1 < M else 0
             col1 = col1 + 1 if col1 + 1 < M else 0
+        if i % 8 == 7 and i + 1 < N:
+            r0, r1 = D0[0], D1[0]
+            for j in range(1, M + 1):
+                r0 = D0[j] if D0[j] < r0 else r0
+                r1 = D1[j] if D1[j] < r1 else r1
+            if r0 > bound and r1 > bound:
+                return r0, r1
     return D0[M], D1[M]
 
 
@@ -193,8 +205,14 @@ def _diagonal_sums(Cb, base, diag, acc, cells):
 
 
 @numba.njit(cache=True, nogil=True)
-def _pair_totals(Cb, base, skip, totals, starts, jl, D, diag, acc, cells):
-    """Starts and DP totals of one pair ``Cb (V, N, M)`` into ``starts (k,)``, ``totals (k,)``."""
+def _pair_totals(Cb, base, skip, totals, starts, jl, D, diag, acc, cells, best_only):
+    """Starts and DP totals of one pair ``Cb (V, N, M)`` into ``starts (k,)``, ``totals (k,)``.
+
+    ``best_only``: only ``totals.min()`` is wanted, so starts (tried best diagonal first) that
+    cannot beat the best total so far are abandoned early (:func:`_dp_total_two`); their
+    entries are then lower bounds above it, and the minimum is the same. The margin of
+    ``1e-9 · skip · M`` over the best total is far above the rounding the DP can accumulate
+    (a few ulps per row), so an abandoned start could not have come out smaller."""
     V, N, M = Cb.shape
     k = starts.shape[0]
     if k == V * M:
@@ -203,10 +221,14 @@ def _pair_totals(Cb, base, skip, totals, starts, jl, D, diag, acc, cells):
     else:
         _diagonal_sums(Cb, base, diag, acc, cells)
         _smallest(diag, k, starts)
+    bound = np.inf
     for t in range(0, k - 1, 2):
         v0, off0 = divmod(starts[t], M)
         v1, off1 = divmod(starts[t + 1], M)
-        totals[t], totals[t + 1] = _dp_total_two(Cb[v0], off0, Cb[v1], off1, skip, jl, D[0], D[1])
+        totals[t], totals[t + 1] = _dp_total_two(Cb[v0], off0, Cb[v1], off1, skip, jl, D[0], D[1],
+                                                 bound)
+        if best_only:
+            bound = min(bound, totals[t] + 1e-9 * jl[M], totals[t + 1] + 1e-9 * jl[M])
     if k % 2:
         v, off = divmod(starts[k - 1], M)
         totals[k - 1] = _dp_total(Cb[v], off, skip, jl, D[0])
@@ -224,7 +246,7 @@ def cyclic_dp_kernel(C, base, skip, totals, starts):
     jl = skip * np.arange(M + 1).astype(np.float64)
     D, diag, acc, cells = np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N)
     for b in range(B):
-        _pair_totals(C[b], base, skip, totals[b], starts[b], jl, D, diag, acc, cells)
+        _pair_totals(C[b], base, skip, totals[b], starts[b], jl, D, diag, acc, cells, False)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -234,7 +256,8 @@ def cyclic_dp_gram_kernel(G, n1, n2, base, skip, totals, starts):
     ``C[b, v, i, j] = max(n1[i] + n2[b, v, j] − 2·G[b, v, j, i], 0)`` (as
     :func:`geoshape.contour.methods.signature_cost_matrices` computes it, same bits) is filled
     pair by pair into a small buffer, so no ``(B, V, N, M)`` array is made.
-    ``G (B, V, M, N)``, ``n1 (N,)``, ``n2 (B, V, M)``.
+    ``G (B, V, M, N)``, ``n1 (N,)``, ``n2 (B, V, M)``. Only the minimum of each pair's
+    ``totals`` is exact (starts abandoned early hold lower bounds above it: :func:`_pair_totals`).
     """
     B, V, M, N = G.shape
     jl, D, diag, acc, cells, Cb = _workspace(V, N, M, skip)
@@ -243,7 +266,7 @@ def cyclic_dp_gram_kernel(G, n1, n2, base, skip, totals, starts):
             for j in range(M):
                 for i in range(N):
                     Cb[v, i, j] = max((n1[i] + n2[b, v, j]) - 2.0 * G[b, v, j, i], 0.0)
-        _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells)
+        _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells, True)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -331,7 +354,8 @@ def cyclic_dp_l1_kernel(H1, H2T, base, skip, totals, starts):
     pair by pair into a small buffer (no ``(B, V, N, M)`` array is made). ``H1 (N, K)``,
     ``H2T (B, V, K, M)``: points last, so each row of costs is built by contiguous passes over
     ``j`` (which the compiler vectorises). O(B·V·N·M·K) for the costs plus the matcher's
-    O(B·(V·M·N + k·N·M)).
+    O(B·(V·M·N + k·N·M)). Only the minimum of each pair's ``totals`` is exact, as for
+    :func:`cyclic_dp_gram_kernel`.
     """
     B, V, K, M = H2T.shape
     N = H1.shape[0]
@@ -346,4 +370,4 @@ def cyclic_dp_l1_kernel(H1, H2T, base, skip, totals, starts):
                     h = H2T[b, v, k]
                     for j in range(M):
                         row[j] += abs(a - h[j])
-        _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells)
+        _pair_totals(Cb, base, skip, totals[b], starts[b], jl, D, diag, acc, cells, True)
