@@ -31,6 +31,7 @@ BENCHMARKS: list[tuple[str, str]] = [
     ("rerank", "geoshape.bench.rerank"),
     ("mirror2d", "geoshape.bench.mirror2d"),
     ("speed2d", "geoshape.bench.speed2d"),
+    ("coarse2d", "geoshape.bench.coarse2d"),
     ("decimate", "geoshape.bench.decimate"),
     ("mlx", "geoshape.bench.mlx"),
     ("index", "geoshape.bench.index"),
