@@ -96,6 +96,23 @@ def test_coarse_to_fine_processes_equal_serial(signatures):
     assert np.array_equal(serial, parallel)
 
 
+@pytest.mark.parametrize("n_starts", [2, 16])
+def test_first_pass_takes_at_most_coarse_starts_per_orientation(signatures, monkeypatch, n_starts):
+    from geoshape.contour import retrieval
+
+    seen = []
+    real = retrieval._coarse_block
+
+    def spy(items_a, items_b, skip_cost, n_starts):
+        seen.append(n_starts)
+        return real(items_a, items_b, skip_cost, n_starts)
+
+    monkeypatch.setattr(retrieval, "_coarse_block", spy)
+    shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,
+                          backend="serial", n_starts=n_starts)
+    assert seen == [min(n_starts, retrieval.COARSE_STARTS)]
+
+
 def test_nearest_mask_is_symmetric_and_excludes_the_diagonal():
     A = np.array([[0.0, 1.0, 2.0, 3.0], [1.0, 0.0, 5.0, 6.0], [2.0, 5.0, 0.0, 0.5],
                   [3.0, 6.0, 0.5, 0.0]])
@@ -131,3 +148,30 @@ def test_speed2d_compares_with_an_exact_reference(signatures, exact, collection)
     text = _compare(exact, D, labels, "ref.npy")
     assert "of the off-diagonal entries are the exact distances" in text and "t = 40:" in text
     assert "not compared" in _compare(exact[:3, :3], D, labels, "ref.npy")
+
+
+def test_coarse2d_bench_rebuilds_the_searched_matrix_and_measures_recall(signatures, exact):
+    """``bench coarse2d`` forms the search's matrix from the exact one and its own first pass:
+    the same bits as ``shape_distance_matrix(search="coarse_to_fine")``; recall is the share of
+    the exact first ranks inside the refined set."""
+    from geoshape.bench.coarse2d import first_pass, recall, searched_matrix
+    from geoshape.contour.retrieval import COARSE_STARTS
+
+    spec = method_spec("default")
+    coarse = first_pass(signatures, spec, COARSE_STARTS, n_jobs=1)
+    refine = nearest_mask(coarse, 3)
+    D = shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,
+                              backend="serial")
+    assert np.array_equal(searched_matrix(exact, coarse, refine), D)
+    assert np.array_equal(recall(exact, np.ones_like(refine), 5), np.ones(len(exact)))
+    ranks = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]], dtype=float)
+    keep = np.zeros((4, 4), dtype=bool)
+    keep[0, 1] = keep[1, 3] = True
+    assert np.array_equal(recall(ranks, keep, 2), [0.5, 0.5, 0.0, 0.0])
+
+
+def test_coarse2d_bench_rejects_bad_start_counts(tmp_path, capsys):
+    from geoshape.__main__ import main
+
+    assert main(["bench", "coarse2d", "--matrix-dir", str(tmp_path), "--starts", "4,x"]) == 2
+    assert "--starts" in capsys.readouterr().err

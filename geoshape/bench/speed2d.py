@@ -109,7 +109,12 @@ def run(args) -> int:
 
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.bench.retrieval2d import points_note
-    from geoshape.contour.retrieval import REFINE_K, contour_signatures, shape_distance_matrix
+    from geoshape.contour.retrieval import (
+        COARSE_STARTS,
+        REFINE_K,
+        contour_signatures,
+        shape_distance_matrix,
+    )
     from geoshape.retrieval.rerank import rerank
 
     sizes = sorted({int(s) for s in args.sizes.split(",") if s.strip()})
@@ -159,12 +164,13 @@ def run(args) -> int:
         "re-ranking (lcdp), image reading excluded. 'CPU s' is the user + system time of the "
         "parent and its worker processes over the same span; divided by the workers it is the "
         "wall time the run would take with its cores to itself. The matcher (cyclic DP with its start "
-        "ranking) and the visibility test of the inner distance run as compiled loops (numba) "
-        "that repeat the NumPy implementation's arithmetic. "
+        "ranking, abandoning starts that cannot beat the best) and the visibility test of the inner "
+        "distance run as compiled loops (numba) that give the NumPy implementation's results to the bit. "
         f"All-pairs search: `{args.search}`"
         + (f" ({'above ' + str(4 * REFINE_K) + ' shapes, ' if args.search == 'auto' else ''}"
            "coarse-to-fine: a first pass on every 2nd contour "
-           f"point in single precision for all pairs, then each query's {REFINE_K} nearest by it "
+           f"point in single precision with {COARSE_STARTS} DP starts per orientation for all pairs, "
+           f"then each query's {REFINE_K} nearest by it "
            "matched exactly, the other entries placed after them; "
            "`geoshape.contour.retrieval`)" if args.search != "exact" else " (every pair exactly)")
         + ".\n\n" + table + ("\n\n" + " ".join(notes) if notes else "") + "\n"

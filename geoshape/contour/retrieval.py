@@ -14,7 +14,8 @@ shapes. So
 
 1. a cheap first pass matches every pair with the same matcher on every ``COARSE_STEP``-th
    contour point (descriptors unchanged: a quarter of the cost matrix, a quarter of each DP)
-   in single precision (about a fifth of the exact cost per pair);
+   in single precision, with at most ``COARSE_STARTS`` DP starts per orientation (about a
+   tenth of the exact cost per pair with the default);
 2. each query's ``refine_k`` nearest shapes by that pass (the union over rows, so the set is
    symmetric) are matched exactly, with the same arithmetic as ``search="exact"`` (the same
    bits);
@@ -54,8 +55,11 @@ __all__ = ["shape_distance_matrix", "contour_signatures", "load_contours", "near
 #: How :func:`shape_distance_matrix` searches: every pair exactly, or a cheap first pass and
 #: exact matching of each query's nearest; ``auto`` picks (see the module docstring).
 SEARCH_MODES = ("auto", "exact", "coarse_to_fine")
-#: First pass: every ``COARSE_STEP``-th contour point (the method's DP starts per orientation).
+#: First pass: every ``COARSE_STEP``-th contour point, at most ``COARSE_STARTS`` DP starts per
+#: orientation (the method's own if fewer). Both chosen by the recall of each query's exact
+#: first ranks (docs/RESULTS.md, "2D coarse-to-fine all-pairs").
 COARSE_STEP = 2
+COARSE_STARTS = 4
 #: Shapes per query matched exactly after the first pass (chosen by measured recall).
 REFINE_K = 150
 #: ``search="auto"`` goes coarse-to-fine above this many × ``refine_k`` shapes.
@@ -139,7 +143,7 @@ def shape_distance_matrix(contours, method: str = DEFAULT_METHOD, *, backend: st
     -----
     Time (exact): N descriptor computations plus N(N − 1)/2 matchings, each O(N_pts² K) for
     the cost matrix plus the matcher (O(n_starts · N_pts²) for ``dp``, O(N_pts³) for
-    ``hungarian``). ``coarse_to_fine``: N(N − 1)/2 first-pass matchings (about a fifth of an
+    ``hungarian``). ``coarse_to_fine``: N(N − 1)/2 first-pass matchings (about a tenth of an
     exact one each with the default) plus at most N · ``refine_k`` exact ones.
     Memory: O(N²) for the result, O(256 · N_pts²) per worker for a batch of cost matrices.
     """
@@ -265,7 +269,7 @@ def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress
     opts = spec["matcher_options"]
     items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
     coarse = functools.partial(_coarse_block, skip_cost=opts.get("skip_cost", 0.3),
-                               n_starts=opts.get("n_starts", 4))
+                               n_starts=min(opts.get("n_starts", COARSE_STARTS), COARSE_STARTS))
     if backend == "serial":
         A = coarse(items, items)
         A = np.triu(A, 1) + np.triu(A, 1).T
