@@ -150,19 +150,20 @@ def test_speed2d_compares_with_an_exact_reference(signatures, exact, collection)
     assert "not compared" in _compare(exact[:3, :3], D, labels, "ref.npy")
 
 
-def test_coarse2d_bench_rebuilds_the_searched_matrix_and_measures_recall(signatures, exact):
-    """``bench coarse2d`` forms the search's matrix from the exact one and its own first pass:
-    the same bits as ``shape_distance_matrix(search="coarse_to_fine")``; recall is the share of
-    the exact first ranks inside the refined set."""
-    from geoshape.bench.coarse2d import first_pass, recall, searched_matrix
-    from geoshape.contour.retrieval import COARSE_STARTS
+@pytest.mark.parametrize("backend", ["serial", "processes"])
+def test_search_matrix_is_its_parts_and_coarse2d_measures_recall(signatures, exact, backend):
+    """The coarse-to-fine matrix is the exact one where the first pass refines and the first
+    pass after it elsewhere (what ``bench coarse2d`` rebuilds without matching again); recall
+    is the share of the exact first ranks inside the refined set."""
+    from geoshape.bench.coarse2d import recall
+    from geoshape.contour.retrieval import COARSE_STARTS, first_pass_matrix, refined_matrix
 
-    spec = method_spec("default")
-    coarse = first_pass(signatures, spec, COARSE_STARTS, n_jobs=1)
+    coarse = first_pass_matrix(signatures, 0.3, COARSE_STARTS, backend=backend, n_jobs=2)
+    assert np.array_equal(coarse, coarse.T) and not coarse.diagonal().any()
     refine = nearest_mask(coarse, 3)
     D = shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,
                               backend="serial")
-    assert np.array_equal(searched_matrix(exact, coarse, refine), D)
+    assert np.array_equal(refined_matrix(exact, coarse, refine), D)
     assert np.array_equal(recall(exact, np.ones_like(refine), 5), np.ones(len(exact)))
     ranks = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]], dtype=float)
     keep = np.zeros((4, 4), dtype=bool)

@@ -40,21 +40,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-write", action="store_true", help="print only")
 
 
-def first_pass(signatures, spec: dict, n_starts: int, n_jobs=None):
-    """The first-pass matrix (symmetric, zero diagonal) with ``n_starts`` starts per orientation."""
-    import functools
-
-    from geoshape.contour.retrieval import COARSE_STEP, _block_size, _coarse_block, _coarse_item
-    from geoshape.parallel import pairwise_matrix
-
-    items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
-    coarse = functools.partial(_coarse_block, skip_cost=spec["matcher_options"]["skip_cost"],
-                               n_starts=n_starts)
-    return pairwise_matrix(coarse, items, symmetric=True, vectorized=True, diagonal=0.0,
-                           block_size=_block_size(len(items), n_jobs, 4, 400), n_jobs=n_jobs,
-                           desc="first pass")
-
-
 def recall(exact, refine, t: int):
     """``(N,)``: share of each query's exact first ``t`` ranks (self excluded) in ``refine``."""
     import numpy as np
@@ -62,17 +47,6 @@ def recall(exact, refine, t: int):
     n = len(exact)
     order = np.argsort(np.where(np.eye(n, dtype=bool), np.inf, exact), axis=1, kind="stable")
     return refine[np.arange(n)[:, None], order[:, :t]].mean(axis=1)
-
-
-def searched_matrix(exact, coarse, refine):
-    """The coarse-to-fine matrix from its parts: exact entries where refined, the first pass
-    after them elsewhere (as :func:`geoshape.contour.retrieval.shape_distance_matrix`)."""
-    import numpy as np
-
-    offset = np.nextafter(exact[refine].max(), np.inf)
-    D = np.where(refine, exact, offset + 0.5 * (coarse + coarse.T))
-    np.fill_diagonal(D, 0.0)
-    return D
 
 
 def run(args) -> int:
@@ -89,8 +63,10 @@ def run(args) -> int:
     from geoshape.contour.retrieval import (
         REFINE_K,
         contour_signatures,
+        first_pass_matrix,
         load_contours,
         nearest_mask,
+        refined_matrix,
         shape_distance_matrix,
     )
     from geoshape.errors import InvalidOptionError
@@ -125,7 +101,8 @@ def run(args) -> int:
         for n_starts in starts:
             print(f"[{name}] first pass, {n_starts} starts per orientation …", flush=True)
             t0 = time.perf_counter()
-            coarse = first_pass(sigs, spec, n_starts, args.n_jobs)
+            coarse = first_pass_matrix(sigs, spec["matcher_options"]["skip_cost"], n_starts,
+                                       n_jobs=args.n_jobs)
             seconds = time.perf_counter() - t0
             for k in ks:
                 refine = nearest_mask(coarse, k)
@@ -135,7 +112,7 @@ def run(args) -> int:
                     cells.append(f"{r.mean():.4f} / {r.min():.2f} / {(r < 1).sum()}")
                     if t == 40 and k == REFINE_K:
                         worst40[n_starts] = min(worst40.get(n_starts, 1.0), float(r.mean()))
-                m = retrieval_metrics(searched_matrix(exact, coarse, refine), labels)
+                m = retrieval_metrics(refined_matrix(exact, coarse, refine), labels)
                 rows.append([name, len(sigs), n_starts, k, f"{seconds:.1f}",
                              f"{refine[~np.eye(len(refine), dtype=bool)].mean():.1%}", *cells,
                              f"{m['bulls_eye']:.2f} ({be_exact:.2f})", f"{m['map']:.4f}"])

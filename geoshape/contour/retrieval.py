@@ -50,7 +50,8 @@ from geoshape.contour.methods import (
 from geoshape.errors import InvalidOptionError
 from geoshape.parallel import single_thread_blas
 
-__all__ = ["shape_distance_matrix", "contour_signatures", "load_contours", "nearest_mask", "SEARCH_MODES"]
+__all__ = ["shape_distance_matrix", "contour_signatures", "load_contours", "nearest_mask",
+           "first_pass_matrix", "refined_matrix", "SEARCH_MODES"]
 
 #: How :func:`shape_distance_matrix` searches: every pair exactly, or a cheap first pass and
 #: exact matching of each query's nearest; ``auto`` picks (see the module docstring).
@@ -261,22 +262,42 @@ def nearest_mask(A: np.ndarray, k: int) -> np.ndarray:
     return mask | mask.T
 
 
+def first_pass_matrix(signatures, skip_cost: float, n_starts: int, *, backend: str | None = None,
+                      n_jobs: int | None = None, progress: bool = False) -> np.ndarray:
+    """First-pass distances of all pairs, ``(N, N)`` symmetric with a zero diagonal: the cyclic DP
+    with ``skip_cost`` and ``n_starts`` starts per orientation on every ``COARSE_STEP``-th point
+    of each embedding, in single precision. O(N² · (N_pts/step)² · (K + n_starts))."""
+    from geoshape.parallel import pairwise_matrix
+
+    items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
+    coarse = functools.partial(_coarse_block, skip_cost=skip_cost, n_starts=n_starts)
+    if backend == "serial":
+        A = np.triu(coarse(items, items), 1)
+        return A + A.T
+    A = pairwise_matrix(coarse, items, symmetric=True, vectorized=True, diagonal=0.0,
+                        block_size=_block_size(len(items), n_jobs, 4, 400), backend=backend,
+                        n_jobs=n_jobs, progress=progress, desc="first pass")
+    return 0.5 * (A + A.T)
+
+
+def refined_matrix(exact: np.ndarray, first_pass: np.ndarray, refine: np.ndarray) -> np.ndarray:
+    """The coarse-to-fine matrix from its parts: ``exact`` where ``refine`` (bool, symmetric),
+    elsewhere ``offset + first_pass`` with ``offset`` just above the largest refined entry (so
+    those rank after every refined one, in the first pass's order); zero diagonal."""
+    offset = np.nextafter(exact[refine].max(), np.inf) if refine.any() else 0.0
+    D = np.where(refine, exact, offset + first_pass)
+    np.fill_diagonal(D, 0.0)
+    return D
+
+
 def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress) -> np.ndarray:
     """``search="coarse_to_fine"`` (module docstring)."""
     from geoshape.parallel import pairwise_matrix
 
-    n = len(signatures)
     opts = spec["matcher_options"]
-    items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
-    coarse = functools.partial(_coarse_block, skip_cost=opts.get("skip_cost", 0.3),
-                               n_starts=min(opts.get("n_starts", COARSE_STARTS), COARSE_STARTS))
-    if backend == "serial":
-        A = coarse(items, items)
-        A = np.triu(A, 1) + np.triu(A, 1).T
-    else:
-        A = pairwise_matrix(coarse, items, symmetric=True, vectorized=True, diagonal=0.0,
-                            block_size=_block_size(n, n_jobs, 4, 400), backend=backend,
-                            n_jobs=n_jobs, progress=progress, desc="first pass")
+    A = first_pass_matrix(signatures, opts.get("skip_cost", 0.3),
+                          min(opts.get("n_starts", COARSE_STARTS), COARSE_STARTS),
+                          backend=backend, n_jobs=n_jobs, progress=progress)
     refine = nearest_mask(A, refine_k)
     fine = functools.partial(_refine_block, spec=spec, refine=refine)
     indexed = list(enumerate(signatures))
@@ -284,14 +305,10 @@ def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress
         E = fine(indexed, indexed)
     else:
         E = pairwise_matrix(fine, indexed, symmetric=True, vectorized=True, diagonal=0.0,
-                            block_size=_block_size(n, n_jobs, 2, 400), backend=backend,
+                            block_size=_block_size(len(indexed), n_jobs, 2, 400), backend=backend,
                             n_jobs=n_jobs, progress=progress, desc="exact pairs")
     E = np.triu(E, 1)
-    E = E + E.T
-    offset = np.nextafter(E[refine].max(), np.inf) if refine.any() else 0.0
-    D = np.where(refine, E, offset + 0.5 * (A + A.T))
-    np.fill_diagonal(D, 0.0)
-    return D
+    return refined_matrix(E + E.T, A, refine)
 
 
 def load_contours(paths, n_points: int = 100, **tracing) -> list[np.ndarray]:
