@@ -36,8 +36,8 @@ def similar_copy(P, shift):
 @pytest.mark.parametrize("method", sorted(CONTOUR_METHODS))
 def test_similarity_transformed_copy_matches_point_for_point(method, silhouette_contour):
     P = silhouette_contour
-    # a multiple of the height term's step (2): its subsampled points are then the same ones;
-    # an odd shift samples the other half and leaves a small residue (docs/2d.md)
+    # a multiple of the height term's step (2): a term on one sampling phase (default_heights)
+    # then reads the same points; an odd shift would leave it a small residue (docs/2d.md)
     shift = 8
     Q = similar_copy(P, shift)  # Q[j] = T(P[j + shift])
     p2p, cost = match_contours(P, Q, method=method)

@@ -109,9 +109,10 @@ def test_the_default_s_matrix_digest_is_pinned():
     """Saved matrices are found by this digest (bench mirror2d's cache, the .spec files of bench
     rerank): a refactor that changed it would silently recompute every cached matrix. Update it
     only when the default's computation really changes."""
-    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_d70f6ae3"
-    # the default before the height-functions term, pinned: its cached matrices stay valid
+    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_e531d5dd"
+    # the defaults before, pinned: their cached matrices stay valid
     assert method_variants.matrix_cache_name("kimia99", "default_144pt") == "kimia99_default_144pt_9e4dce61"
+    assert method_variants.matrix_cache_name("kimia99", "default_heights") == "kimia99_default_heights_d70f6ae3"
 
 
 
