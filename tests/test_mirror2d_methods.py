@@ -112,7 +112,8 @@ def test_the_default_s_matrix_digest_is_pinned():
     assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_e531d5dd"
     # the defaults before, pinned: their cached matrices stay valid
     assert method_variants.matrix_cache_name("kimia99", "default_144pt") == "kimia99_default_144pt_9e4dce61"
-    assert method_variants.matrix_cache_name("kimia99", "default_heights") == "kimia99_default_heights_d70f6ae3"
+    pinned_heights = method_variants.matrix_cache_name("kimia99", "default_heights")
+    assert pinned_heights == "kimia99_default_heights_d70f6ae3"
 
 
 
