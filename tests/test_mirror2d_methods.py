@@ -118,13 +118,13 @@ def test_the_default_s_matrix_digest_is_pinned():
 
 
 def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_path, capsys):
-    _, args = _tiny_args(tmp_path, "--methods", "default@64,default_heights+hweight=0.5+hgroups=11@64",
-                         "--section", "default2d-trial")
+    variant = "default_heights+hweight=0.5+hgroups=11+hphases=1@64"
+    _, args = _tiny_args(tmp_path, "--methods", f"default@64,{variant}", "--section", "default2d-trial")
     assert mirror2d.run(args) == 0
     out = capsys.readouterr().out
     assert "## 2D default method: cross-validated choice (default2d-trial)" in out
     assert "--section default2d-trial" in out
-    assert "heights term weight 0.5, skip cost 0.15, 11 runs, every 2 points" in out
+    assert "heights term weight 0.5, skip cost 0.15, 11 runs, every 2 points of every sampling phase" in out
 
 
 def test_settings_mode_builds_the_default_s_mirror_variant_from_mirrored_shapes(tmp_path, capsys):

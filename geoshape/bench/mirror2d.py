@@ -317,7 +317,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
             return f", weights {', '.join(f'{p[0]} {p[1]:g}' for p in value)} instead"
         if key == "heights":
             return (f", heights term weight {value['weight']:g}, skip cost {value['skip_cost']:g}, "
-                    f"{value['descriptor']['n_groups']} runs, every {value['step']} points, "
+                    f"{value['descriptor']['n_groups']} runs, every {value['step']} points"
+                    f"{' of every sampling phase' if value.get('all_phases') else ''}, "
                     f"{value['n_starts']} starts per orientation instead")
         return f", {key} {value:g} instead"
 
