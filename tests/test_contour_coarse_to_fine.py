@@ -164,11 +164,11 @@ def test_search_matrix_is_its_parts_and_coarse2d_measures_recall(signatures, exa
     D = shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,
                               backend="serial")
     assert np.array_equal(refined_matrix(exact, coarse, refine), D)
-    assert np.array_equal(recall(exact, np.ones_like(refine), 5), np.ones(len(exact)))
+    assert np.array_equal(recall(exact, np.ones_like(refine), (5,))[5], np.ones(len(exact)))
     ranks = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]], dtype=float)
     keep = np.zeros((4, 4), dtype=bool)
     keep[0, 1] = keep[1, 3] = True
-    assert np.array_equal(recall(ranks, keep, 2), [0.5, 0.5, 0.0, 0.0])
+    assert np.array_equal(recall(ranks, keep, (2,))[2], [0.5, 0.5, 0.0, 0.0])
 
 
 def test_coarse2d_bench_rejects_bad_start_counts(tmp_path, capsys):

@@ -146,7 +146,7 @@ def _dp_total_two(Cv0, off0, Cv1, off1, skip, jl, D0, D1, bound):
             D0[j], D1[j] = m0 + jl[j], m1 + jl[j]
             col0 = col0 + 1 if col0 + 1 < M else 0
             col1 = col1 + 1 if col1 + 1 < M else 0
-        if i % 8 == 7 and i + 1 < N:
+        if bound < np.inf and i % 8 == 7 and i + 1 < N:
             r0, r1 = D0[0], D1[0]
             for j in range(1, M + 1):
                 r0 = D0[j] if D0[j] < r0 else r0
@@ -243,8 +243,7 @@ def cyclic_dp_kernel(C, base, skip, totals, starts):
     O(B·(V·M·N + k·N·M)).
     """
     B, V, N, M = C.shape
-    jl = skip * np.arange(M + 1).astype(np.float64)
-    D, diag, acc, cells = np.empty((2, M + 1)), np.empty(V * M), np.empty((8, V * M)), np.empty(N)
+    jl, D, diag, acc, cells, _ = _workspace(V, N, M, skip)
     for b in range(B):
         _pair_totals(C[b], base, skip, totals[b], starts[b], jl, D, diag, acc, cells, False)
 
