@@ -21,7 +21,8 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
     ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
     :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (0 ≤ X ≤
     :data:`~geoshape.geometry.contour.MAX_SMOOTHING`,
-    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`), in any order,
+    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`); ``+hNAME=X`` and
+    ``+rNAME=X`` a setting of the method's height-functions or region term; in any order,
     before ``@``. Anything else raises :class:`~geoshape.errors.InvalidOptionError` naming it,
     before any work.
 
@@ -58,6 +59,10 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
             if mod.startswith("h") and eq and term and name in _HEIGHTS_MODIFIERS:
                 overrides["heights"] = _with_height_option(term, name, weight)
                 continue
+            region = overrides.get("region", CONTOUR_METHODS.get(base, {}).get("region"))
+            if mod.startswith("r") and eq and region and name in _REGION_MODIFIERS:
+                overrides["region"] = dict(region, **{name: _REGION_MODIFIERS[name](weight)})
+                continue
             parts = overrides.get("parts", CONTOUR_METHODS.get(base, {}).get("parts", ()))
             if mod.startswith("w") and eq and float(weight) >= 0 and name in [p[0] for p in parts]:
                 overrides["parts"] = tuple((p[0], float(weight), *p[2:]) if p[0] == name else p
@@ -69,7 +74,8 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
                                  "+startsK with K >= 1, +wNAME=X with NAME a part of the method, "
                                  "+hweight=X, +hskip=X, +hgroups=K, +hstep=K, +hstarts=K, "
                                  "+hphases=0|1 for a "
-                                 "method with a heights term, "
+                                 "method with a heights term, +rweight=X, +rorder=K, +rradius=X "
+                                 "for one with a region term, "
                                  f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g})")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
@@ -82,6 +88,9 @@ def _flag(value: str) -> bool:
         raise ValueError(value)
     return value == "1"
 
+
+#: ``+rNAME=X`` modifiers of a method's ``region`` term: key -> type (checked by method_spec).
+_REGION_MODIFIERS = {"weight": float, "order": int, "radius": float}
 
 #: ``+hNAME=X`` modifiers of a method's ``heights`` term: name -> (key, type).
 _HEIGHTS_MODIFIERS = {"weight": ("weight", float), "skip": ("skip_cost", float),

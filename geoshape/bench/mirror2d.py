@@ -92,13 +92,14 @@ def choose(summary: dict, reference: str = "off") -> str:
 
 def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
     """Per setting: the matrix, its time, and the descriptors' time (cached in ``work``)."""
+    import dataclasses
     import json
     import os
     import time
 
     import numpy as np
 
-    from geoshape.contour.methods import ContourSignature, contour_tracing
+    from geoshape.contour.methods import contour_tracing
     from geoshape.contour.retrieval import contour_signatures, load_contours, shape_distance_matrix
     from geoshape.geometry.contour import mirror_contour
     from geoshape.io.atomic import save_npy_atomic, write_text_atomic
@@ -122,7 +123,7 @@ def _collection(name: str, folder, work, settings: list[str], n_jobs) -> dict:
                                           mirror=False, n_jobs=n_jobs)
             t2 = time.perf_counter()
             # the mirror image's direct descriptors are the mirror variant (height functions too)
-            sigs = [ContourSignature(a.X, a.s, b.X, a.H, b.H, a.complexity)
+            sigs = [dataclasses.replace(a, X_mirror=b.X, H_mirror=b.H)
                     for a, b in zip(direct, mirrored, strict=True)]
             desc = {"direct": t1 - t0, "mirror": t2 - t1}
         mirror, n_starts = SETTINGS[setting]
@@ -320,6 +321,9 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
                     f"{value['descriptor']['n_groups']} runs, every {value['step']} points"
                     f"{' of every sampling phase' if value.get('all_phases') else ''}, "
                     f"{value['n_starts']} starts per orientation instead")
+        if key == "region":
+            return (f", region term weight {value['weight']:g}, Zernike orders up to {value['order']}, "
+                    f"disc of {value['radius']:g} equal-area radii instead")
         return f", {key} {value:g} instead"
 
     def extra(m):
@@ -347,7 +351,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "
         "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter; `+hweight=X`, "
         "`+hskip=X`, `+hgroups=K`, `+hstep=K`, `+hstarts=K`: that setting of the method's "
-        "height-functions term). "
+        "height-functions term; `+rweight=X`, `+rorder=K`, `+rradius=X`: that setting of its "
+        "region term). "
         "Collections as in the mirror-aware section above. 'BE − clean': bull's-eye points "
         "relative to the unperturbed collection (the target is within 1.5 points).\n\n"
         f"Candidates:\n\n{what}\n\n"

@@ -9,9 +9,16 @@ the sampled curvature map, which reads the curvature at fixed distances.
 
 The height functions (Wang, Bai, Wang, Liu & Tu, Pattern Recognition 2012) describe a point by
 the signed distances of all other contour points to its tangent line, in contour order.
+
+The Zernike moment magnitudes (Khotanzad & Hong 1990) describe the whole region a contour
+encloses, not its points: a global complement to the point descriptors, insensitive to where
+the boundary is cut or bitten because small changes of the region move every moment little.
 """
 
 from __future__ import annotations
+
+import functools
+from math import factorial
 
 import numpy as np
 
@@ -26,6 +33,7 @@ __all__ = [
     "geodesic_shape_context",
     "curvature_map",
     "height_functions",
+    "zernike_magnitudes",
 ]
 
 #: Curvature thresholding schemes (``none`` keeps the raw scale-normalised curvature).
@@ -294,3 +302,87 @@ def height_functions(P, *, n_groups: int = 25, decay: float | str | None = 0.25,
         d = np.minimum(centre, N - centre) / N
         H *= np.exp(-d / decay)[None, :]
     return H / np.sqrt(n_groups)
+
+
+@functools.lru_cache(maxsize=4)
+def _zernike_basis(order: int, grid: int) -> tuple[np.ndarray, int]:
+    """The real and imaginary parts of the conjugate Zernike polynomials ``V*_nm`` of
+    ``2 ≤ n ≤ order``, ``0 ≤ m ≤ n``, ``n − m`` even, at the pixel centres of a ``grid × grid``
+    raster of ``[−1, 1]²`` (0 outside the unit disc): ``(2K, grid²)`` and ``K``. O(K·grid²)."""
+    v = (np.arange(grid) + 0.5) / grid * 2.0 - 1.0
+    x, y = np.meshgrid(v, v)
+    rho, theta = np.hypot(x, y), np.arctan2(y, x)
+    inside = rho <= 1.0
+    nm = [(n, m) for n in range(2, order + 1) for m in range(n % 2, n + 1, 2)]
+    rows = []
+    for n, m in nm:
+        radial = sum((-1) ** k * factorial(n - k)
+                     / (factorial(k) * factorial((n + m) // 2 - k) * factorial((n - m) // 2 - k))
+                     * rho ** (n - 2 * k) for k in range((n - m) // 2 + 1))
+        rows.append(np.where(inside, radial, 0.0) * np.exp(-1j * m * theta))
+    V = np.array(rows).reshape(len(nm), -1)
+    return np.vstack([V.real, V.imag]), len(nm)
+
+
+def zernike_magnitudes(P, *, order: int = 8, radius: float = 2.0, grid: int = 96) -> np.ndarray:
+    """Zernike moment magnitudes of the region enclosed by a closed contour.
+
+    The polygon is centred on its region's centroid, scaled so that a disc ``radius`` times
+    the radius of the disc of equal area becomes the unit disc (the area is the scale least
+    moved by boundary noise; with ``radius = 2`` only shapes longer than about four times their
+    width reach beyond it, and the part beyond is left out), and rasterised on ``grid × grid``
+    pixels. The moments ``Z_nm = Σ_pixels V*_nm`` of ``2 ≤ n ≤ order`` (``n = 0`` is the area
+    and ``n = 1`` vanishes at the centroid) are divided by the number of pixels inside.
+
+    Parameters
+    ----------
+    P : (N, 2) array_like
+        Closed contour (either orientation).
+    order : int
+        Highest moment order (≥ 2); ``order = 8`` gives 23 magnitudes, 12 gives 47.
+    radius : float
+        Size of the unit disc in equal-area radii (> 0).
+    grid : int
+        Raster side in pixels (≥ 16).
+
+    Returns
+    -------
+    (K,) float64
+        ``|Z_nm|`` in the order ``(2, 0), (2, 2), (3, 1), (3, 3), (4, 0) …``. Invariant to
+        translation, rotation, scale, the start point and reflection (a mirror image
+        conjugates every moment), up to rasterisation.
+
+    Notes
+    -----
+    O(N·grid) to rasterise and O(K·grid²) for the moments (one matrix–vector product with a
+    cached basis): about 1 ms per shape at the defaults.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    >>> ellipse = np.c_[3 * np.cos(t), np.sin(t)]
+    >>> turned = ellipse @ np.array([[0.6, -0.8], [0.8, 0.6]]).T * 5 + 7
+    >>> bool(np.allclose(zernike_magnitudes(ellipse), zernike_magnitudes(turned), atol=0.02))
+    True
+    """
+    from skimage.draw import polygon as raster_polygon
+
+    from geoshape.geometry.contour import polygon_centroid, signed_area
+    from geoshape.io.validate import check_contour
+
+    P = check_contour(P)
+    if not (isinstance(order, (int, np.integer)) and order >= 2):
+        raise InvalidOptionError(f"order must be an integer >= 2, got {order!r}")
+    if not radius > 0:
+        raise InvalidOptionError(f"radius must be > 0, got {radius!r}")
+    if not (isinstance(grid, (int, np.integer)) and grid >= 16):
+        raise InvalidOptionError(f"grid must be an integer >= 16, got {grid!r}")
+    area = abs(signed_area(P))
+    Q = (P - polygon_centroid(P)) / (radius * np.sqrt(area / np.pi))
+    pixel = (Q + 1.0) / 2.0 * grid - 0.5  # pixel centres sit at integer coordinates
+    rows, cols = raster_polygon(pixel[:, 1], pixel[:, 0], (grid, grid))
+    mask = np.zeros((grid, grid))
+    mask[rows, cols] = 1.0
+    basis, k = _zernike_basis(int(order), int(grid))
+    Z = basis @ mask.ravel()
+    return np.hypot(Z[:k], Z[k:]) / max(mask.sum(), 1.0)

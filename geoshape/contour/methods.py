@@ -228,6 +228,14 @@ _DEFAULT = dict(
 )
 
 
+def _region_term(weight: float, *, order: int = 8, radius: float = 2.0) -> dict:
+    """A ``region`` term: ``weight`` × the city-block distance between the two shapes' Zernike
+    moment magnitudes up to ``order`` (:func:`geoshape.contour.descriptors.zernike_magnitudes`,
+    the unit disc ``radius`` equal-area radii wide). The magnitudes do not change under a
+    reflection, so one vector serves both orientations. O(K) per pair."""
+    return dict(weight=weight, order=order, radius=radius)
+
+
 def _variant(summary: str, base: dict = _DEFAULT, **changes) -> dict:
     """``base`` (the default unless given) with ``changes`` (and its own ``matcher_options``)."""
     out = dict(base, summary=summary, **changes)
@@ -274,6 +282,10 @@ CONTOUR_METHODS: dict[str, dict] = {
                                "sampling phase, 4 starts per orientation, divided by the shapes' "
                                "complexities); the default of 2026-12-06 (afternoon)",
                                heights=_heights_term(0.25)),
+    "default_region": _variant("the default + 0.025 x the city-block distance of the Zernike moment "
+                               "magnitudes (orders 2 to 8) of the enclosed regions, scaled to twice "
+                               "the equal-area radius (a cross-validation candidate)",
+                               heights=_DEFAULT["heights"], region=_region_term(0.025)),
     "height_functions": dict(
         parts=(("height_functions", 1.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.06, n_starts=4),
@@ -341,14 +353,14 @@ def method_spec(method: str, **overrides) -> dict:
     for key, value in overrides.items():
         if value is None:
             continue
-        if key in ("matcher", "metric", "mirror", "parts", "heights"):
+        if key in ("matcher", "metric", "mirror", "parts", "heights", "region"):
             spec[key] = value
         elif key in ("skip_cost", "n_starts", "c1", "c2"):
             spec["matcher_options"][key] = value
         else:
             raise InvalidOptionError(
                 f"unknown option {key!r} for method {method!r}; allowed: matcher, metric, "
-                "mirror, parts, heights, skip_cost, n_starts, c1, c2"
+                "mirror, parts, heights, region, skip_cost, n_starts, c1, c2"
             )
     check_choice("matcher", spec["matcher"], MATCHERS)
     check_choice("metric", spec["metric"], ("sqeuclidean", "chi2"))
@@ -359,6 +371,8 @@ def method_spec(method: str, **overrides) -> dict:
         raise InvalidOptionError("metric 'chi2' needs exactly one histogram descriptor")
     if spec.get("heights"):
         _check_heights(spec["heights"])
+    if spec.get("region"):
+        _check_region(spec["region"])
     return spec
 
 
@@ -380,6 +394,18 @@ def _check_heights(term: dict) -> None:
             raise InvalidOptionError(f"heights {name} must be {what}, got {term[name]!r}")
 
 
+def _check_region(term: dict) -> None:
+    """Reject a malformed ``region`` term, naming the bad entry."""
+    keys = {"weight", "order", "radius"}
+    if not isinstance(term, dict) or set(term) != keys:
+        raise InvalidOptionError(f"region must be a dict with keys {sorted(keys)}, got {term!r}")
+    checks = (("weight", term["weight"] >= 0, "≥ 0"), ("radius", term["radius"] > 0, "> 0"),
+              ("order", int(term["order"]) == term["order"] >= 2, "an integer ≥ 2"))
+    for name, ok, what in checks:
+        if not ok:
+            raise InvalidOptionError(f"region {name} must be {what}, got {term[name]!r}")
+
+
 @dataclass(frozen=True)
 class ContourSignature:
     """Everything a method needs about one contour, computed once.
@@ -390,7 +416,8 @@ class ContourSignature:
     ``step``-th point, from each of ``R`` starting phases (``R = step`` with the term's
     ``all_phases``, else 1: phase 0), ``H_mirror`` those of the mirror image (or ``None``) and
     ``complexity`` the mean city-block distance between the rows of each phase's ``H``, averaged
-    over the phases (0 without the term).
+    over the phases (0 without the term). For a method with a ``region`` term: ``Z (K,)`` the
+    Zernike moment magnitudes of the enclosed region (the same for the mirror image).
     """
 
     X: np.ndarray
@@ -399,6 +426,7 @@ class ContourSignature:
     H: np.ndarray | None = None
     H_mirror: np.ndarray | None = None
     complexity: float = 0.0
+    Z: np.ndarray | None = None
 
 
 def _embed(P: np.ndarray, spec: dict, inner: tuple | None = None) -> np.ndarray:
@@ -436,10 +464,15 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
     if spec["mirror"]:
         inner_mirror = None if inner is None else mirrored_inner_distances(*inner)
         Xm = _embed(mirror_contour(P), spec, inner_mirror)
+    Z = None
+    if spec.get("region"):
+        from geoshape.contour.descriptors import zernike_magnitudes
+
+        Z = zernike_magnitudes(P, order=spec["region"]["order"], radius=spec["region"]["radius"])
     if not spec.get("heights"):
-        return ContourSignature(X, s, Xm)
+        return ContourSignature(X, s, Xm, Z=Z)
     H, Hm, complexity = _height_signature(P, spec)
-    return ContourSignature(X, s, Xm, H, Hm, complexity)
+    return ContourSignature(X, s, Xm, H, Hm, complexity, Z)
 
 
 def _height_signature(P: np.ndarray, spec: dict):
@@ -509,7 +542,7 @@ class SignatureStack:
     term, ``HV (B, V·R, G, M')`` the height functions of each orientation's ``R`` phases,
     points last (the layout of :func:`~geoshape.contour.matching.cyclic_dp_l1_costs`), and
     ``complexity (B,)``
-    (else ``None``).
+    (else ``None``); with a ``region`` term, ``Z (B, K)`` (else ``None``).
     """
 
     X: np.ndarray
@@ -519,6 +552,7 @@ class SignatureStack:
     XV: np.ndarray
     HV: np.ndarray | None = None
     complexity: np.ndarray | None = None
+    Z: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.X)
@@ -527,8 +561,9 @@ class SignatureStack:
         """The signatures from ``first`` on (views)."""
         mirror = None if self.X_mirror is None else self.X_mirror[first:]
         heights = (None, None) if self.HV is None else (self.HV[first:], self.complexity[first:])
+        region = None if self.Z is None else self.Z[first:]
         return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:],
-                              self.XV[first:], *heights)
+                              self.XV[first:], *heights, region)
 
 
 def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
@@ -546,8 +581,9 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
         HV = np.stack([np.concatenate([sig.H, sig.H_mirror]) if mirror else sig.H for sig in sigs])
         HV = np.ascontiguousarray(HV.transpose(0, 1, 3, 2))
         complexity = np.array([sig.complexity for sig in sigs])
+    Z = None if sigs[0].Z is None else np.stack([sig.Z for sig in sigs])
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
-                          norms, XV, HV, complexity)
+                          norms, XV, HV, complexity, Z)
 
 
 def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarray:
@@ -559,7 +595,8 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     image; for the ``dp`` matcher ``n_starts`` is then per orientation (the best
     ``2·n_starts`` starts ranked over both orientations together). Shapes in ``sigs2`` must
     have equal point counts (they are stacked). A method with a ``heights`` term adds
-    ``weight ×`` :func:`height_costs` (matched on their own).
+    ``weight ×`` :func:`height_costs` (matched on their own); one with a ``region`` term adds
+    ``weight ×`` the city-block distance of the Zernike magnitudes (no matching: O(K) a pair).
 
     For the ``dp`` matcher with the squared-Euclidean cost the cost matrices are never
     stored: the compiled matcher builds each from the matrix product
@@ -571,6 +608,9 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     out = _main_pair_costs(sig1, stack, spec, cols)
     if spec.get("heights"):
         out += spec["heights"]["weight"] * height_costs(sig1, stack, spec, cols)
+    if spec.get("region"):
+        Z2 = stack.Z if cols is None else stack.Z[np.asarray(cols, dtype=np.int64)]
+        out += spec["region"]["weight"] * np.abs(Z2 - sig1.Z).sum(axis=1)
     return out
 
 

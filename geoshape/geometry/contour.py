@@ -31,6 +31,7 @@ __all__ = [
     "SMOOTHING",
     "contour_from_image",
     "signed_area",
+    "polygon_centroid",
     "orient_ccw",
     "arc_length",
     "perimeter",
@@ -45,6 +46,18 @@ def signed_area(P: np.ndarray) -> float:
     """Signed area of the polygon (shoelace), positive when counter-clockwise. O(N)."""
     x, y = P[:, 0], P[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def polygon_centroid(P: np.ndarray) -> np.ndarray:
+    """Centroid ``(2,)`` of the region the polygon encloses (not of its vertices). O(N).
+
+    >>> polygon_centroid(np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [0.0, 2.0]])).tolist()
+    [2.0, 1.0]
+    """
+    x, y = P[:, 0], P[:, 1]
+    x2, y2 = np.roll(x, -1), np.roll(y, -1)
+    cross = x * y2 - x2 * y
+    return np.array([np.dot(x + x2, cross), np.dot(y + y2, cross)]) / (3.0 * cross.sum())
 
 
 def orient_ccw(P: np.ndarray) -> np.ndarray:
