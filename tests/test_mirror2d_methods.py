@@ -142,3 +142,10 @@ def test_settings_mode_builds_the_default_s_mirror_variant_from_mirrored_shapes(
     D = np.load(work / f"{stem}-mirror-on-16.npy")
     contours = load_contours([it.path for it in read_labels(folder)], **contour_tracing("default"))
     np.testing.assert_allclose(D, shape_distance_matrix(contours, backend="serial"), rtol=1e-12, atol=1e-15)
+
+
+def test_region_variants_name_their_setting(tmp_path, capsys):
+    _, args = _tiny_args(tmp_path, "--methods", "default@64,default_region+rweight=0.1+rorder=6@64")
+    assert mirror2d.run(args) == 0
+    out = capsys.readouterr().out
+    assert "region term weight 0.1, Zernike orders up to 6, disc of 2 equal-area radii instead" in out
