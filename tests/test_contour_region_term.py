@@ -79,8 +79,8 @@ def test_bad_descriptor_options_are_rejected(shapes, bad, match):
 
 
 def test_the_term_adds_weight_times_the_city_block_distance(shapes):
-    base = method_spec("default")
-    spec = method_spec("default", region=_region_term(0.5, order=6))
+    base = method_spec("default_phases")
+    spec = method_spec("default_phases", region=_region_term(0.5, order=6))
     sig_b = [contour_signature(P, spec=base) for P in shapes]
     sig_r = [contour_signature(P, spec=spec) for P in shapes]
     np.testing.assert_array_equal(sig_b[1].X, sig_r[1].X)
@@ -103,14 +103,14 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
 
     contours = shapes + [np.roll(1.3 * P, 4, axis=0) for P in shapes]
     region = _region_term(0.5)
-    spec = method_spec("default", region=region)
+    spec = method_spec("default_phases", region=region)
     sigs = [contour_signature(P, spec=spec) for P in contours]
     options = dict(region=region, signatures=sigs, backend="serial")
-    exact = shape_distance_matrix(None, "default", search="exact", **options)
-    plain = shape_distance_matrix(None, "default", search="exact", signatures=sigs, backend="serial")
+    exact = shape_distance_matrix(None, "default_phases", search="exact", **options)
+    plain = shape_distance_matrix(None, "default_phases", search="exact", signatures=sigs, backend="serial")
     Z = np.array([sig.Z for sig in sigs])
     assert np.allclose(exact, plain + 0.5 * np.abs(Z[:, None] - Z[None]).sum(axis=2), atol=1e-12)
-    fine = shape_distance_matrix(None, "default", search="coarse_to_fine", refine_k=2, **options)
+    fine = shape_distance_matrix(None, "default_phases", search="coarse_to_fine", refine_k=2, **options)
     refine = nearest_mask(first_pass_matrix(sigs, 0.3, COARSE_STARTS, backend="serial"), 2)
     assert refine.sum() < refine.size - len(refine)  # some pairs are left to the first pass
     np.fill_diagonal(refine, False)
@@ -122,9 +122,9 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
 ])
 def test_bad_region_terms_are_rejected_up_front(bad, match):
     with pytest.raises(InvalidOptionError, match=match):
-        method_spec("default", region=dict(_region_term(1.0), **bad))
+        method_spec("default_phases", region=dict(_region_term(1.0), **bad))
     with pytest.raises(InvalidOptionError, match="keys"):
-        method_spec("default", region=dict(weight=1.0))
+        method_spec("default_phases", region=dict(weight=1.0))
 
 
 def test_variant_modifiers_of_the_region_term():
@@ -132,6 +132,6 @@ def test_variant_modifiers_of_the_region_term():
 
     _, _, over = parse_variant("default_region+rweight=0.1+rorder=12+rradius=1.5")
     assert over["region"] == dict(weight=0.1, order=12, radius=1.5)
-    for bad in ("default_region+rcolour=2", "default+rweight=0.1", "default_region+rorder=x"):
+    for bad in ("default_region+rcolour=2", "default_phases+rweight=0.1", "default_region+rorder=x"):
         with pytest.raises(InvalidOptionError, match="bad modifier"):
             parse_variant(bad)

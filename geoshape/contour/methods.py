@@ -211,14 +211,15 @@ def _heights_term(weight: float, *, n_groups: int = 23, skip_cost: float = 0.15,
     return dict(term, all_phases=True) if all_phases else term
 
 
-#: The default since 2026-12-06 (evening): ``default_144pt`` plus a quarter of the
-#: height-functions dissimilarity (23 runs, skip cost 0.15, every 2nd point; weight, skip and
-#: runs the rule's choice over the nine dev collections, "default2d-heights"), the other
-#: shape sampled from both phases (start-point invariant) with 2 DP starts per orientation and
-#: phase — the rule's choice in "2D default method: cross-validated choice (default2d-phases)":
-#: the only eligible variant of the term in that run (1.98x the reference's matrix time;
-#: one phase with 4 starts 2.02x, both phases with 4 starts 2.13x), worst case 95.33 %.
-_DEFAULT = dict(
+#: The default of 2026-12-06 (evening) (``default_phases``; the default below adds the region
+#: term to it): ``default_144pt`` plus a quarter of the height-functions dissimilarity (23
+#: runs, skip cost 0.15, every 2nd point; weight, skip and runs the rule's choice over the
+#: nine dev collections, "default2d-heights"), the other shape sampled from both phases
+#: (start-point invariant) with 2 DP starts per orientation and phase — the rule's choice in
+#: "2D default method: cross-validated choice (default2d-phases)": the only eligible variant
+#: of the term in that run (1.98x the reference's matrix time; one phase with 4 starts 2.02x,
+#: both phases with 4 starts 2.13x), worst case 95.33 %.
+_DEFAULT_PHASES = dict(
     _DEFAULT_2026_12_06, heights=_heights_term(0.25, n_starts=2, all_phases=True),
     summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
     "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, plus 0.25 x the "
@@ -234,6 +235,24 @@ def _region_term(weight: float, *, order: int = 8, radius: float = 2.0) -> dict:
     the unit disc ``radius`` equal-area radii wide). The magnitudes do not change under a
     reflection, so one vector serves both orientations. O(K) per pair."""
     return dict(weight=weight, order=order, radius=radius)
+
+
+#: The default since 2026-12-06 (night): ``default_phases`` plus 0.0125 x the city-block
+#: distance of the Zernike moment magnitudes up to order 12 of the enclosed regions (a disc of
+#: twice the equal-area radius) — the rule's choice over the nine dev collections in "2D
+#: default method: cross-validated choice (default2d-region)" (time reference: the default
+#: before it), among weights 0.00625 to 0.05, orders 8 / 12 / 16 and discs of 1.5 / 2
+#: equal-area radii.
+_DEFAULT = dict(
+    _DEFAULT_PHASES, region=_region_term(0.0125, order=12),
+    summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
+    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, plus 0.25 x the "
+    "height-functions dissimilarity (23 runs weighted 1/r on every 2nd point, both sampling "
+    "phases, city-block cyclic DP, divided by the shapes' complexities) and 0.0125 x the "
+    "city-block distance of the regions' Zernike moment magnitudes (orders 2 to 12, a disc of "
+    "twice the equal-area radius), on 144 contour points smoothed by a Gaussian of 0.0025 x the "
+    "perimeter, parts of >= 1 % of the largest joined",
+)
 
 
 def _variant(summary: str, base: dict = _DEFAULT, **changes) -> dict:
@@ -282,10 +301,13 @@ CONTOUR_METHODS: dict[str, dict] = {
                                "sampling phase, 4 starts per orientation, divided by the shapes' "
                                "complexities); the default of 2026-12-06 (afternoon)",
                                heights=_heights_term(0.25)),
-    "default_region": _variant("the default + 0.025 x the city-block distance of the Zernike moment "
-                               "magnitudes (orders 2 to 8) of the enclosed regions, scaled to twice "
-                               "the equal-area radius (a cross-validation candidate)",
-                               heights=_DEFAULT["heights"], region=_region_term(0.025)),
+    "default_phases": _variant("the default of 2026-12-06 (evening): the default without the region "
+                               "term (pinned; the time reference of default2d-region)",
+                               base=_DEFAULT_PHASES),
+    "default_region": _variant("default_phases + 0.025 x the city-block distance of the Zernike "
+                               "moment magnitudes (orders 2 to 8) of the enclosed regions, scaled to "
+                               "twice the equal-area radius (a cross-validation candidate; pinned)",
+                               base=_DEFAULT_PHASES, region=_region_term(0.025)),
     "height_functions": dict(
         parts=(("height_functions", 1.0, "raw", {}),),
         metric="sqeuclidean", matcher="dp", matcher_options=dict(skip_cost=0.06, n_starts=4),
