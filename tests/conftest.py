@@ -41,6 +41,22 @@ def grid_mesh(nx: int = 10, ny: int = 10, size: float = 1.0):
     return V, F.astype(np.int64)
 
 
+def wobbly_contours(n: int = 96) -> list:
+    """Four distinct star-like closed contours ``(n, 2)``, counter-clockwise."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    out = []
+    for a, b in ((0.3, 0.15), (0.25, 0.2), (0.1, 0.4), (0.45, 0.0)):
+        r = 1 + a * np.cos(3 * t) + b * np.sin(2 * t)
+        out.append(np.c_[r * np.cos(t), r * np.sin(t)])
+    return out
+
+
+def similar(P, theta: float = 0.9, scale: float = 2.5, shift=(4.0, -7.0)):
+    """``P (N, 2)`` rotated by ``theta``, scaled and shifted."""
+    R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    return scale * P @ R.T + np.asarray(shift)
+
+
 @pytest.fixture
 def no_other_threads(monkeypatch):
     """Threads left by earlier tests (a Dask client, pools) make beside refuse to fork; these

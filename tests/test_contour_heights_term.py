@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import similar, wobbly_contours
 from scipy.spatial.distance import cdist
 
 from geoshape.contour.descriptors import height_functions
@@ -25,17 +26,7 @@ from geoshape.geometry.contour import mirror_contour
 
 @pytest.fixture(scope="module")
 def shapes():
-    t = np.linspace(0, 2 * np.pi, 96, endpoint=False)
-    out = []
-    for a, b in ((0.3, 0.15), (0.25, 0.2), (0.1, 0.4), (0.45, 0.0)):
-        r = 1 + a * np.cos(3 * t) + b * np.sin(2 * t)
-        out.append(np.c_[r * np.cos(t), r * np.sin(t)])
-    return out
-
-
-def _similar(P, theta=0.9, scale=2.5, shift=(4.0, -7.0)):
-    R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
-    return scale * P @ R.T + np.asarray(shift)
+    return wobbly_contours()
 
 
 def _spec(weight=1.0, **options):
@@ -46,7 +37,7 @@ def test_max_scale_puts_the_run_means_in_unit_range_and_inverse_weights_are_one_
     P = shapes[0]
     plain = height_functions(P, n_groups=9, decay=None, scale="max") * np.sqrt(9)
     assert np.isclose(np.abs(plain).max(), 1.0)
-    assert np.allclose(height_functions(_similar(P), n_groups=9, decay=None, scale="max"),
+    assert np.allclose(height_functions(similar(P), n_groups=9, decay=None, scale="max"),
                        plain / np.sqrt(9), atol=1e-12)
     weighted = height_functions(P, n_groups=9, decay="inverse", scale="max") * np.sqrt(9)
     r = np.array([1, 2, 3, 4, 5, 4, 3, 2, 1])  # the run's rank from the point, either way
@@ -71,7 +62,7 @@ def test_heights_term_is_invariant_to_similarity_start_point_and_mirror(shapes):
     P = shapes[0]
     sig = contour_signature(P, spec=spec)
     # shifts by multiples of the step keep the same subsampled points
-    copies = [_similar(P), np.roll(P, 10, axis=0), np.roll(mirror_contour(_similar(P)), 8, axis=0)]
+    copies = [similar(P), np.roll(P, 10, axis=0), np.roll(mirror_contour(similar(P)), 8, axis=0)]
     others = shapes[1:]
     stack = stack_signatures([contour_signature(Q, spec=spec) for Q in copies + others])
     h = height_costs(sig, stack, spec)
@@ -83,7 +74,7 @@ def test_all_phases_make_the_term_independent_of_the_start_point(shapes):
     """Sampled from one phase, a copy shifted by an odd number of points reads the other half of
     the samples and keeps a residue; matched against every phase of the other shape, it is 0."""
     P = shapes[1]
-    copies = [np.roll(P, 1, axis=0), np.roll(_similar(P), 7, axis=0),
+    copies = [np.roll(P, 1, axis=0), np.roll(similar(P), 7, axis=0),
               np.roll(mirror_contour(P), 5, axis=0)]
     for all_phases, step in ((False, 2), (True, 2), (True, 3)):
         spec = _spec(n_groups=12, step=step, all_phases=all_phases)

@@ -6,32 +6,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import similar, wobbly_contours
 
+from geoshape.contour import methods
 from geoshape.contour.descriptors import zernike_magnitudes
-from geoshape.contour.methods import (
-    _region_term,
-    contour_signature,
-    method_spec,
-    pair_costs,
-    stack_signatures,
-)
 from geoshape.errors import InvalidContourError, InvalidOptionError
 from geoshape.geometry.contour import mirror_contour, polygon_centroid, resample_contour
 
 
 @pytest.fixture(scope="module")
 def shapes():
-    t = np.linspace(0, 2 * np.pi, 96, endpoint=False)
-    out = []
-    for a, b in ((0.3, 0.15), (0.25, 0.2), (0.1, 0.4), (0.45, 0.0)):
-        r = 1 + a * np.cos(3 * t) + b * np.sin(2 * t)
-        out.append(np.c_[r * np.cos(t), r * np.sin(t)])
-    return out
-
-
-def _similar(P, theta=0.9, scale=2.5, shift=(4.0, -7.0)):
-    R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
-    return scale * P @ R.T + np.asarray(shift)
+    """Four distinct star-like contours (tests.conftest)."""
+    return wobbly_contours()
 
 
 def test_polygon_centroid_is_the_region_s_not_the_vertices():
@@ -60,7 +46,7 @@ def test_magnitudes_are_invariant_to_similarity_start_point_sampling_and_mirror(
     P = shapes[0]
     Z = zernike_magnitudes(P)
     assert Z.shape == (23,) and zernike_magnitudes(P, order=12).shape == (47,)
-    for copy in (_similar(P), np.roll(P, 17, axis=0), mirror_contour(_similar(P, theta=2.0)),
+    for copy in (similar(P), np.roll(P, 17, axis=0), mirror_contour(similar(P, theta=2.0)),
                  resample_contour(P, 300), P[::-1]):
         assert np.abs(zernike_magnitudes(copy) - Z).sum() < 0.02
     others = [np.abs(zernike_magnitudes(Q) - Z).sum() for Q in shapes[1:]]
@@ -79,18 +65,18 @@ def test_bad_descriptor_options_are_rejected(shapes, bad, match):
 
 
 def test_the_term_adds_weight_times_the_city_block_distance(shapes):
-    base = method_spec("default_phases")
-    spec = method_spec("default_phases", region=_region_term(0.5, order=6))
-    sig_b = [contour_signature(P, spec=base) for P in shapes]
-    sig_r = [contour_signature(P, spec=spec) for P in shapes]
+    base = methods.method_spec("default_phases")
+    spec = methods.method_spec("default_phases", region=methods._region_term(0.5, order=6))
+    sig_b = [methods.contour_signature(P, spec=base) for P in shapes]
+    sig_r = [methods.contour_signature(P, spec=spec) for P in shapes]
     np.testing.assert_array_equal(sig_b[1].X, sig_r[1].X)
     assert sig_b[0].Z is None and sig_r[0].Z.shape == (14,)
     Z = np.array([zernike_magnitudes(P, order=6) for P in shapes])
-    expected = pair_costs(sig_b[0], sig_b[1:], base) + 0.5 * np.abs(Z[1:] - Z[0]).sum(axis=1)
-    assert np.allclose(pair_costs(sig_r[0], sig_r[1:], spec), expected, rtol=1e-12)
-    stack = stack_signatures(sig_r[1:])
-    assert np.allclose(pair_costs(sig_r[0], stack, spec, cols=[2, 0]), expected[[2, 0]], rtol=1e-12)
-    assert np.allclose(pair_costs(sig_r[0], stack.tail(1), spec), expected[1:], rtol=1e-12)
+    expected = methods.pair_costs(sig_b[0], sig_b[1:], base) + 0.5 * np.abs(Z[1:] - Z[0]).sum(axis=1)
+    assert np.allclose(methods.pair_costs(sig_r[0], sig_r[1:], spec), expected, rtol=1e-12)
+    stack = methods.stack_signatures(sig_r[1:])
+    assert np.allclose(methods.pair_costs(sig_r[0], stack, spec, cols=[2, 0]), expected[[2, 0]], rtol=1e-12)
+    assert np.allclose(methods.pair_costs(sig_r[0], stack.tail(1), spec), expected[1:], rtol=1e-12)
 
 
 def test_coarse_to_fine_refines_with_the_region_term(shapes):
@@ -102,9 +88,9 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
     )
 
     contours = shapes + [np.roll(1.3 * P, 4, axis=0) for P in shapes]
-    region = _region_term(0.5)
-    spec = method_spec("default_phases", region=region)
-    sigs = [contour_signature(P, spec=spec) for P in contours]
+    region = methods._region_term(0.5)
+    spec = methods.method_spec("default_phases", region=region)
+    sigs = [methods.contour_signature(P, spec=spec) for P in contours]
     options = dict(region=region, signatures=sigs, backend="serial")
     exact = shape_distance_matrix(None, "default_phases", search="exact", **options)
     plain = shape_distance_matrix(None, "default_phases", search="exact", signatures=sigs, backend="serial")
@@ -122,9 +108,9 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
 ])
 def test_bad_region_terms_are_rejected_up_front(bad, match):
     with pytest.raises(InvalidOptionError, match=match):
-        method_spec("default_phases", region=dict(_region_term(1.0), **bad))
+        methods.method_spec("default_phases", region=dict(methods._region_term(1.0), **bad))
     with pytest.raises(InvalidOptionError, match="keys"):
-        method_spec("default_phases", region=dict(weight=1.0))
+        methods.method_spec("default_phases", region=dict(weight=1.0))
 
 
 def test_variant_modifiers_of_the_region_term():
