@@ -60,7 +60,10 @@ def test_magnitudes_are_invariant_to_similarity_start_point_sampling_and_mirror(
 def test_bad_descriptor_options_are_rejected(shapes, bad, match):
     with pytest.raises(InvalidOptionError, match=match):
         zernike_magnitudes(shapes[0], **bad)
-    with pytest.raises(InvalidContourError):
+
+
+def test_a_degenerate_contour_is_rejected_by_name():
+    with pytest.raises(InvalidContourError, match="contour"):
         zernike_magnitudes(np.zeros((10, 2)))
 
 
@@ -77,6 +80,9 @@ def test_the_term_adds_weight_times_the_city_block_distance(shapes):
     stack = methods.stack_signatures(sig_r[1:])
     assert np.allclose(methods.pair_costs(sig_r[0], stack, spec, cols=[2, 0]), expected[[2, 0]], rtol=1e-12)
     assert np.allclose(methods.pair_costs(sig_r[0], stack.tail(1), spec), expected[1:], rtol=1e-12)
+    # match_contours reports the same distance (and the main term's map)
+    _, cost = methods.match_contours(shapes[0], shapes[2], method="default_phases", region=spec["region"])
+    assert np.isclose(cost, expected[1], rtol=1e-9)
 
 
 def test_coarse_to_fine_refines_with_the_region_term(shapes):
@@ -105,6 +111,7 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
 
 @pytest.mark.parametrize("bad, match", [
     (dict(weight=-1.0), "weight"), (dict(order=1), "order"), (dict(radius=-2.0), "radius"),
+    (dict(order=12.0), "order"), (dict(order=True), "order"), (dict(weight="0.1"), "weight"),
 ])
 def test_bad_region_terms_are_rejected_up_front(bad, match):
     with pytest.raises(InvalidOptionError, match=match):

@@ -110,7 +110,7 @@ def test_the_default_s_matrix_digest_is_pinned():
     rerank): a refactor that changed it would silently recompute every cached matrix. Update it
     only when the default's computation really changes."""
     assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_7d86721e"
-    # the default is the cross-validated candidate it was chosen as (so their cache is shared)
+    # the default computes what the cross-validated candidate it was chosen as computed
     chosen = "default_region+rorder=12+rweight=0.0125"
     assert method_variants.effective_spec("default") == method_variants.effective_spec(chosen)
     assert method_variants.matrix_cache_name("kimia99", "default_phases") == "kimia99_default_phases_e531d5dd"

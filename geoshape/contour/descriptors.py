@@ -18,7 +18,6 @@ the boundary is cut or bitten because small changes of the region move every mom
 from __future__ import annotations
 
 import functools
-from math import factorial
 
 import numpy as np
 
@@ -309,17 +308,14 @@ def _zernike_basis(order: int, grid: int) -> tuple[np.ndarray, int]:
     """The real and imaginary parts of the conjugate Zernike polynomials ``V*_nm`` of
     ``2 ≤ n ≤ order``, ``0 ≤ m ≤ n``, ``n − m`` even, at the pixel centres of a ``grid × grid``
     raster of ``[−1, 1]²`` (0 outside the unit disc): ``(2K, grid²)`` and ``K``. O(K·grid²)."""
+    from geoshape.geometry.zernike import zernike_indices, zernike_radial
+
     v = (np.arange(grid) + 0.5) / grid * 2.0 - 1.0
     x, y = np.meshgrid(v, v)
     rho, theta = np.hypot(x, y), np.arctan2(y, x)
     inside = rho <= 1.0
-    nm = [(n, m) for n in range(2, order + 1) for m in range(n % 2, n + 1, 2)]
-    rows = []
-    for n, m in nm:
-        radial = sum((-1) ** k * factorial(n - k)
-                     / (factorial(k) * factorial((n + m) // 2 - k) * factorial((n - m) // 2 - k))
-                     * rho ** (n - 2 * k) for k in range((n - m) // 2 + 1))
-        rows.append(np.where(inside, radial, 0.0) * np.exp(-1j * m * theta))
+    nm = zernike_indices(order, first=2)
+    rows = [np.where(inside, zernike_radial(rho, n, m), 0.0) * np.exp(-1j * m * theta) for n, m in nm]
     V = np.array(rows).reshape(len(nm), -1)
     return np.vstack([V.real, V.imag]), len(nm)
 
@@ -330,9 +326,11 @@ def zernike_magnitudes(P, *, order: int = 8, radius: float = 2.0, grid: int = 96
     The polygon is centred on its region's centroid, scaled so that a disc ``radius`` times
     the radius of the disc of equal area becomes the unit disc (the area is the scale least
     moved by boundary noise; with ``radius = 2`` only shapes longer than about four times their
-    width reach beyond it, and the part beyond is left out), and rasterised on ``grid × grid``
-    pixels. The moments ``Z_nm = Σ_pixels V*_nm`` of ``2 ≤ n ≤ order`` (``n = 0`` is the area
-    and ``n = 1`` vanishes at the centroid) are divided by the number of pixels inside.
+    width reach beyond it, and the part beyond adds nothing to the moments), and rasterised on
+    ``grid × grid`` pixels. The moments ``Z_nm = Σ_pixels V*_nm`` of ``2 ≤ n ≤ order``
+    (``n = 0`` is the area and ``n = 1`` vanishes at the centroid) are divided by the number of
+    the polygon's pixels (also those beyond the disc: an area normalisation), without the usual
+    ``(n + 1) / π`` factor, so every order counts alike in a distance.
 
     Parameters
     ----------
@@ -350,12 +348,13 @@ def zernike_magnitudes(P, *, order: int = 8, radius: float = 2.0, grid: int = 96
     (K,) float64
         ``|Z_nm|`` in the order ``(2, 0), (2, 2), (3, 1), (3, 3), (4, 0) …``. Invariant to
         translation, rotation, scale, the start point and reflection (a mirror image
-        conjugates every moment), up to rasterisation.
+        turns ``Z_nm`` into ``(−1)^m · conj(Z_nm)``), up to rasterisation.
 
     Notes
     -----
-    O(N·grid) to rasterise and O(K·A) for the moments, ``A ≤ grid²`` the pixels inside (a sum
-    over them of a cached basis).
+    O(N·B) to rasterise (skimage tests each of the ``B ≤ grid²`` pixels of the bounding box
+    against the N edges) and O(K·A) for the moments, ``A ≤ B`` the pixels inside (a sum over
+    them of a cached basis); about 3 ms per shape at N = 144 and the defaults.
 
     Examples
     --------

@@ -21,7 +21,12 @@ name           descriptor                               point cost   matcher
                dissimilarity of Wang et al. (2012),                  orientation and sampling
                matched on its own (:func:`height_costs`)             phase), both orientations,
                                                                      both phases
-``default_nomirror`` the same, direct orientation only
+               plus 0.0125 × the regions' Zernike       city-block   none (one vector per
+               moment magnitudes, orders 2 to 12                     shape, reflection-
+               (``zernike_magnitudes``)                              invariant)
+``default_nomirror`` the same, direct orientation only (the region term is reflection-invariant)
+``default_phases`` the default of 2026-12-06 (evening): the same without the region term (pinned)
+``default_region`` ``default_phases`` + 0.025 × the region term on orders 2 to 8 (pinned candidate)
 ``default_144pt`` the default of 2026-12-05 (night) to 12-06: the same without the height functions (pinned)
 ``default_100pt`` ``default_144pt`` on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned,
                the default before)
@@ -421,8 +426,14 @@ def _check_region(term: dict) -> None:
     keys = {"weight", "order", "radius"}
     if not isinstance(term, dict) or set(term) != keys:
         raise InvalidOptionError(f"region must be a dict with keys {sorted(keys)}, got {term!r}")
-    checks = (("weight", term["weight"] >= 0, "≥ 0"), ("radius", term["radius"] > 0, "> 0"),
-              ("order", int(term["order"]) == term["order"] >= 2, "an integer ≥ 2"))
+    def number(x):
+        return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+
+    order = term["order"]
+    checks = (("weight", number(term["weight"]) and term["weight"] >= 0, "a number ≥ 0"),
+              ("radius", number(term["radius"]) and term["radius"] > 0, "a number > 0"),
+              ("order", isinstance(order, (int, np.integer)) and not isinstance(order, bool)
+               and order >= 2, "an integer ≥ 2"))
     for name, ok, what in checks:
         if not ok:
             raise InvalidOptionError(f"region {name} must be {what}, got {term[name]!r}")
@@ -627,7 +638,13 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     if len(sigs2) == 0:
         return np.zeros(0)
     stack = sigs2 if isinstance(sigs2, SignatureStack) else stack_signatures(list(sigs2))
-    out = _main_pair_costs(sig1, stack, spec, cols)
+    return _add_terms(_main_pair_costs(sig1, stack, spec, cols), sig1, stack, spec, cols)
+
+
+def _add_terms(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack, spec: dict,
+               cols=None) -> np.ndarray:
+    """``out`` (the main term's distances to ``stack``, or to its ``cols``) plus, in place, the
+    ``heights`` and ``region`` terms of ``spec``, in that order."""
     if spec.get("heights"):
         out += spec["heights"]["weight"] * height_costs(sig1, stack, spec, cols)
     if spec.get("region"):
@@ -652,7 +669,7 @@ def height_costs(sig1: ContourSignature, stack: SignatureStack, spec: dict,
 
 
 def _main_pair_costs(sig1: ContourSignature, stack: SignatureStack, spec: dict, cols):
-    """:func:`pair_costs` without the ``heights`` term."""
+    """:func:`pair_costs` without the ``heights`` and ``region`` terms."""
     X2, s2 = stack.X, stack.s
     opts = _variant_options(spec)
     if spec["matcher"] == "dp" and spec["metric"] == "sqeuclidean":
@@ -764,10 +781,8 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
         p2p, cost = _match_one(C, sig1.s, s2, spec)
         if best is None or cost < best[1]:
             best = (index[p2p].astype(np.int64), float(cost))
-    if spec.get("heights"):
-        extra = height_costs(sig1, stack_signatures([sig2]), spec)[0]
-        best = (best[0], best[1] + spec["heights"]["weight"] * float(extra))
-    return best
+    cost = _add_terms(np.array([best[1]]), sig1, stack_signatures([sig2]), spec)[0]
+    return best[0], float(cost)
 
 
 def _match_one(C: np.ndarray, s1: np.ndarray, s2: np.ndarray, spec: dict):

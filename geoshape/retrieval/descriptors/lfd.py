@@ -196,7 +196,7 @@ def rasterize_triangles(P2: np.ndarray, F: np.ndarray, res: int) -> np.ndarray:
 @functools.lru_cache(maxsize=4)
 def _zernike_basis(res: int, order: int) -> np.ndarray:
     """Conjugate Zernike polynomials at the pixel centres of the unit disk, scaled for sums."""
-    from math import factorial
+    from geoshape.geometry.zernike import zernike_indices, zernike_radial
 
     c = (np.arange(res) + 0.5) / res * 2.0 - 1.0
     x, y = np.meshgrid(c, -c)
@@ -204,14 +204,9 @@ def _zernike_basis(res: int, order: int) -> np.ndarray:
     th = np.arctan2(y, x).ravel()
     inside = rho <= 1.0
     rows = []
-    for n in range(order + 1):
-        for m in range(n % 2, n + 1, 2):
-            R = np.zeros_like(rho)
-            for s in range((n - m) // 2 + 1):
-                coef = ((-1) ** s * factorial(n - s)
-                        / (factorial(s) * factorial((n + m) // 2 - s) * factorial((n - m) // 2 - s)))
-                R += coef * rho ** (n - 2 * s)
-            rows.append((n + 1) / np.pi * R * np.exp(-1j * m * th) * inside * (2.0 / res) ** 2)
+    for n, m in zernike_indices(order):
+        R = zernike_radial(rho, n, m)
+        rows.append((n + 1) / np.pi * R * np.exp(-1j * m * th) * inside * (2.0 / res) ** 2)
     Z = np.array(rows)  # (36, res * res) for order 10
     return np.ascontiguousarray(np.concatenate([Z.real, Z.imag]))  # real BLAS: ~50x faster
 
