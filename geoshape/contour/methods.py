@@ -416,9 +416,15 @@ def _check_heights(term: dict) -> None:
     checks = (("weight", term["weight"] >= 0, "≥ 0"), ("skip_cost", term["skip_cost"] > 0, "> 0"),
               ("n_starts", int(term["n_starts"]) == term["n_starts"] >= 1, "an integer ≥ 1"),
               ("step", int(term["step"]) == term["step"] >= 1, "an integer ≥ 1"))
-    for name, ok, what in checks:
+    _reject_failed("heights", term, checks)
+
+
+def _reject_failed(term_name: str, term: dict, checks) -> None:
+    """Raise :class:`InvalidOptionError` for the first ``(key, ok, what)`` of ``checks`` that
+    failed, naming the term, the key, what it must be and what it was."""
+    for key, ok, what in checks:
         if not ok:
-            raise InvalidOptionError(f"heights {name} must be {what}, got {term[name]!r}")
+            raise InvalidOptionError(f"{term_name} {key} must be {what}, got {term[key]!r}")
 
 
 def _check_region(term: dict) -> None:
@@ -434,9 +440,7 @@ def _check_region(term: dict) -> None:
               ("radius", number(term["radius"]) and term["radius"] > 0, "a number > 0"),
               ("order", isinstance(order, (int, np.integer)) and not isinstance(order, bool)
                and order >= 2, "an integer ≥ 2"))
-    for name, ok, what in checks:
-        if not ok:
-            raise InvalidOptionError(f"region {name} must be {what}, got {term[name]!r}")
+    _reject_failed("region", term, checks)
 
 
 @dataclass(frozen=True)
