@@ -155,8 +155,8 @@ def test_search_matrix_is_its_parts_and_coarse2d_measures_recall(signatures, exa
     """The coarse-to-fine matrix is the exact one where the first pass refines and the first
     pass after it elsewhere (what ``bench coarse2d`` rebuilds without matching again); recall
     is the share of the exact first ranks inside the refined set."""
-    from geoshape.bench.coarse2d import recall
     from geoshape.contour.retrieval import COARSE_STARTS, first_pass_matrix, refined_matrix
+    from geoshape.metrics.retrieval import rank_recall
 
     coarse = first_pass_matrix(signatures, 0.3, COARSE_STARTS, backend=backend, n_jobs=2)
     assert np.array_equal(coarse, coarse.T) and not coarse.diagonal().any()
@@ -164,11 +164,11 @@ def test_search_matrix_is_its_parts_and_coarse2d_measures_recall(signatures, exa
     D = shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,
                               backend="serial")
     assert np.array_equal(refined_matrix(exact, coarse, refine), D)
-    assert np.array_equal(recall(exact, np.ones_like(refine), (5,))[5], np.ones(len(exact)))
+    assert np.array_equal(rank_recall(exact, np.ones_like(refine), (5,))[5], np.ones(len(exact)))
     ranks = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]], dtype=float)
     keep = np.zeros((4, 4), dtype=bool)
     keep[0, 1] = keep[1, 3] = True
-    assert np.array_equal(recall(ranks, keep, (2,))[2], [0.5, 0.5, 0.0, 0.0])
+    assert np.array_equal(rank_recall(ranks, keep, (2,))[2], [0.5, 0.5, 0.0, 0.0])
 
 
 def test_coarse2d_bench_rejects_bad_start_counts(tmp_path, capsys):

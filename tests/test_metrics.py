@@ -115,6 +115,42 @@ def test_bad_retrieval_input():
         M.top_k_counts(line_matrix([0, 1, 2]), [0, 0, 1], max_rank=5)
 
 
+def test_rank_recall_counts_kept_first_ranks():
+    """The share of each query's first ranks (query excluded, ties by index) a mask keeps; a
+    depth beyond N − 1 counts every other item; a permuted collection permutes the answer."""
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(9, 2))
+    D = np.linalg.norm(X[:, None] - X[None], axis=-1)
+    everything = M.rank_recall(D, np.ones((9, 9), bool), depths=(1, 4, 30))
+    assert all(np.array_equal(r, np.ones(9)) for r in everything.values())
+    nearest = np.argsort(D + np.diag(np.full(9, np.inf)), axis=1)
+    mask = np.zeros((9, 9), bool)
+    mask[np.arange(9), nearest[:, 0]] = True  # each query's first neighbour only
+    r = M.rank_recall(D, mask, depths=(1, 2, 8, 30))
+    assert np.array_equal(r[1], np.ones(9)) and np.allclose(r[2], 0.5)
+    assert np.allclose(r[8], 1 / 8) and np.allclose(r[30], 1 / 8)
+    perm = rng.permutation(9)
+    r_perm = M.rank_recall(D[np.ix_(perm, perm)], mask[np.ix_(perm, perm)], depths=(2,))
+    assert np.array_equal(r_perm[2], r[2][perm])
+    D_tied = np.ones((3, 3))  # all tied: the first rank is the lowest other index
+    assert M.rank_recall(D_tied, np.eye(3, k=1, dtype=bool), depths=(1,))[1].tolist() == [1.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize(("D", "kept", "depths", "message"), [
+    (np.ones((3, 4)), np.ones((3, 4), bool), (1,), "must be square"),
+    ([[0, np.nan], [1, 0]], np.ones((2, 2), bool), (1,), "NaN or infinite"),
+    (np.ones((3, 3)), np.ones((2, 2), bool), (1,), "kept must be an (N, N) = (3, 3) mask"),
+    (np.ones((3, 3)), np.full((3, 3), 0.5), (1,), "mask of booleans"),
+    (np.ones((3, 3)), np.ones((3, 3), bool), (0,), "depths must be integers >= 1"),
+    (np.ones((3, 3)), np.ones((3, 3), bool), (2.5,), "got (2.5,)"),
+    (np.ones((3, 3)), np.ones((3, 3), bool), (), "depths must be integers"),
+])
+def test_rank_recall_rejects_bad_input(D, kept, depths, message):
+    with pytest.raises(InvalidOptionError) as err:
+        M.rank_recall(D, kept, depths=depths)
+    assert message in str(err.value)
+
+
 def test_plot_precision_recall(tmp_path):
     m = M.retrieval_metrics(line_matrix(TOY_X), TOY_LABELS)
     out = plot_precision_recall({"toy": m, "flat": ([0, 1], [0.5, 0.5])}, tmp_path / "pr.png")

@@ -44,17 +44,6 @@ def add_arguments(parser) -> None:
 DEPTHS = (10, 20, 40)
 
 
-def recall(exact, kept, depths=DEPTHS) -> dict:
-    """``{t: (N,)}``: share of each query's exact first ``t`` ranks (self excluded, ties by
-    index) where ``kept (N, N)`` is true, for each ``t`` in ``depths``. One sort, O(N² log N)."""
-    import numpy as np
-
-    n = len(exact)
-    order = np.argsort(np.where(np.eye(n, dtype=bool), np.inf, exact), axis=1, kind="stable")
-    rows = np.arange(n)[:, None]
-    return {t: kept[rows, order[:, :t]].mean(axis=1) for t in depths}
-
-
 def run(args) -> int:
     import os
     import time
@@ -78,7 +67,7 @@ def run(args) -> int:
     from geoshape.errors import InvalidOptionError
     from geoshape.io.atomic import save_npy_atomic
     from geoshape.io.datasets import read_labels
-    from geoshape.metrics.retrieval import retrieval_metrics
+    from geoshape.metrics.retrieval import rank_recall, retrieval_metrics
 
     try:
         starts = sorted({int(s) for s in args.starts.split(",") if s.strip()}, reverse=True)
@@ -113,7 +102,7 @@ def run(args) -> int:
             seconds = time.perf_counter() - t0
             for k in ks:
                 refine = nearest_mask(coarse, k)
-                kept = recall(exact, refine)
+                kept = rank_recall(exact, refine, DEPTHS)
                 cells = [f"{r.mean():.4f} / {r.min():.2f} / {(r < 1).sum()}" for r in kept.values()]
                 if k == REFINE_K:
                     worst40[n_starts] = min(worst40.get(n_starts, 1.0), float(kept[40].mean()))

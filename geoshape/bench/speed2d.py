@@ -79,7 +79,7 @@ def _compare(ref, D, labels, path) -> str:
 
     import numpy as np
 
-    from geoshape.bench.coarse2d import recall
+    from geoshape.metrics.retrieval import rank_recall
     from geoshape.retrieval.rerank import rerank
 
     name = os.path.basename(path)
@@ -94,7 +94,7 @@ def _compare(ref, D, labels, path) -> str:
              f"{(exact & off).sum() / off.sum():.1%} of the off-diagonal entries are the exact "
              f"distances (the rest rank after them); share of each query's exact first t ranks "
              f"that are exact here (mean / worst query):"]
-    for t, kept in recall(ref, exact).items():
+    for t, kept in rank_recall(ref, exact).items():
         parts.append(f"t = {t}: {kept.mean():.4f} / {kept.min():.2f};")
     return " ".join(parts)[:-1] + "."
 

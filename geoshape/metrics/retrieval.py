@@ -34,6 +34,7 @@ __all__ = [
     "dcg",
     "mean_average_precision",
     "precision_recall_curve",
+    "rank_recall",
     "retrieval_metrics",
 ]
 
@@ -288,6 +289,48 @@ def precision_recall_curve(D, labels, recall_levels=None) -> tuple[np.ndarray, n
     if levels.ndim != 1 or not np.all((levels >= 0) & (levels <= 1)):
         raise InvalidOptionError(f"recall_levels must be a 1-D array in [0, 1], got {levels!r}")
     return levels, _pr_curve(rel, n_rel, levels)
+
+
+def rank_recall(D, kept, depths=(10, 20, 40)) -> dict:
+    """How much of each query's first ranks a subset of pairs keeps (no labels: the ranks of
+    ``D`` are the truth, e.g. an exact matrix against the pairs an approximate search refines).
+
+    Parameters
+    ----------
+    D : (N, N) array_like of float
+        The reference dissimilarities; row ``i`` ranks every other item for query ``i``
+        (query excluded, ties by index as everywhere here).
+    kept : (N, N) array_like of bool
+        ``kept[i, j]``: the pair is kept for query ``i``.
+    depths : sequence of int
+        Each ≥ 1; a depth beyond N − 1 counts all N − 1 others.
+
+    Returns
+    -------
+    dict
+        ``{t: (N,) float64}``: for each depth ``t`` the share of query ``i``'s first ``t``
+        ranks ``j`` with ``kept[i, j]``. One sort per row, O(N² log N).
+
+    Examples
+    --------
+    >>> D = [[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]]
+    >>> kept = [[0, 1, 0, 0], [0, 0, 0, 1], [0, 0, 0, 0], [0, 0, 0, 0]]
+    >>> rank_recall(D, kept, depths=(2,))[2].tolist()
+    [0.5, 0.5, 0.0, 0.0]
+    """
+    D, _ = _check_inputs(D, np.zeros(len(np.asarray(D))))
+    n = D.shape[0]
+    kept = np.asarray(kept)
+    if kept.shape != D.shape or not (kept.dtype == bool or np.isin(kept, (0, 1)).all()):
+        raise InvalidOptionError(f"kept must be an (N, N) = {D.shape} mask of booleans, got shape "
+                                 f"{kept.shape} and dtype {kept.dtype}")
+    depths = tuple(depths)
+    bad = [t for t in depths if not isinstance(t, (int, np.integer)) or t < 1]
+    if not depths or bad:
+        raise InvalidOptionError(f"depths must be integers >= 1, got {depths!r}")
+    order = np.argsort(np.where(np.eye(n, dtype=bool), np.inf, D), axis=1, kind="stable")
+    first = kept.astype(bool)[np.arange(n)[:, None], order[:, :min(max(depths), n - 1)]]  # self last
+    return {t: first[:, :t].mean(axis=1) for t in depths}
 
 
 def retrieval_metrics(D, labels, max_rank: int = 10, e_depth: int = 32) -> dict:
