@@ -61,6 +61,29 @@ def test_methods_mode_runs_and_caches(tmp_path, capsys):
     assert "…" not in capsys.readouterr().out
 
 
+def test_budget_counts_cpu_seconds_and_falls_back_to_wall_for_old_caches(tmp_path, capsys):
+    """Each matrix's CPU seconds are cached beside it and the rule's budget uses them; a matrix
+    cached without them (before they were recorded) puts the whole table on wall seconds, and
+    the section says which."""
+    import json
+
+    _, args = _tiny_args(tmp_path, "--methods", "height_functions,height_functions+skip0.1")
+    assert mirror2d.run(args) == 0
+    out = capsys.readouterr().out
+    assert "a method whose matrix CPU time (user + system, workers included) summed" in out
+    assert "| × height_functions (CPU) |" in out
+    meta = tmp_path / "work" / f"{mirror2d.matrix_cache_name('tiny', 'height_functions')}.json"
+    info = json.loads(meta.read_text())
+    assert info["matrix_cpu_s"] > 0
+    del info["matrix_cpu_s"]
+    meta.write_text(json.dumps(info))
+    assert mirror2d.run(args) == 0
+    out = capsys.readouterr().out
+    assert "matrix wall time (cached matrices without CPU seconds) summed" in out
+    assert "| × height_functions (wall) |" in out
+
+
+
 def test_cache_is_keyed_by_what_a_method_computes(monkeypatch):
     """A registry entry that changes (``default`` taking more DP starts) gets a new cache file."""
     from geoshape.contour import methods

@@ -57,14 +57,6 @@ def extended_collection(n_total: int, n_points: int | None, seed: int):
     return contours[:n_total], labels[:n_total]
 
 
-def _cpu_seconds() -> float:
-    """User + system CPU seconds of this process and of its finished (joined) children."""
-    import resource
-
-    return sum(getattr(resource.getrusage(who), f) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
-               for f in ("ru_utime", "ru_stime"))
-
-
 def _scores(D, R, labels) -> str:
     from geoshape.metrics.retrieval import retrieval_metrics
 
@@ -108,6 +100,7 @@ def run(args) -> int:
 
     from geoshape.bench.results import markdown_table, update_results_section
     from geoshape.bench.retrieval2d import points_note
+    from geoshape.bench.timing import cpu_seconds
     from geoshape.contour.retrieval import (
         COARSE_STARTS,
         REFINE_K,
@@ -123,15 +116,15 @@ def run(args) -> int:
     rows, notes = [], []
     for n in sizes:
         print(f"[speed2d] {n} shapes …", flush=True)
-        cpu0 = _cpu_seconds()
+        cpu0 = cpu_seconds()
         t0 = time.perf_counter()
         sigs = contour_signatures(contours[:n], n_jobs=args.n_jobs)
-        t1, cpu1 = time.perf_counter(), _cpu_seconds()
+        t1, cpu1 = time.perf_counter(), cpu_seconds()
         D = shape_distance_matrix(None, signatures=sigs, n_jobs=args.n_jobs, search=args.search)
-        t2, cpu2 = time.perf_counter(), _cpu_seconds()
+        t2, cpu2 = time.perf_counter(), cpu_seconds()
         R = rerank(D)
         t3 = time.perf_counter()
-        cpu = _cpu_seconds() - cpu0
+        cpu = cpu_seconds() - cpu0
         pairs = n * (n - 1) // 2
         total = t3 - t0
         rows.append([n, f"{pairs:,}", f"{t1 - t0:.1f}", f"{t2 - t1:.1f}",
