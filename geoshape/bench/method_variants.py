@@ -55,13 +55,11 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
                 overrides["n_starts"] = int(mod[6:])
                 continue
             name, eq, weight = mod[1:].partition("=")
-            term = overrides.get("heights", CONTOUR_METHODS.get(base, {}).get("heights"))
-            if mod.startswith("h") and eq and term and name in _HEIGHTS_MODIFIERS:
-                overrides["heights"] = _with_height_option(term, name, weight)
-                continue
-            region = overrides.get("region", CONTOUR_METHODS.get(base, {}).get("region"))
-            if mod.startswith("r") and eq and region and name in _REGION_MODIFIERS:
-                overrides["region"] = dict(region, **{name: _REGION_MODIFIERS[name](weight)})
+            key, options = _TERM_MODIFIERS.get(mod[:1], (None, {}))
+            term = overrides.get(key, CONTOUR_METHODS.get(base, {}).get(key)) if key else None
+            if eq and term and name in options:
+                path, kind = options[name]
+                overrides[key] = _with_option(term, path, kind(weight))
                 continue
             parts = overrides.get("parts", CONTOUR_METHODS.get(base, {}).get("parts", ()))
             if mod.startswith("w") and eq and float(weight) >= 0 and name in [p[0] for p in parts]:
@@ -89,22 +87,22 @@ def _flag(value: str) -> bool:
     return value == "1"
 
 
-#: ``+rNAME=X`` modifiers of a method's ``region`` term: key -> type (checked by method_spec).
-_REGION_MODIFIERS = {"weight": float, "order": int, "radius": float}
+#: Modifiers of a method's extra terms: ``+<prefix><NAME>=X`` -> (term key, {NAME: (path of the
+#: option inside the term, type)}). The values are checked by ``method_spec``.
+_TERM_MODIFIERS = {
+    "h": ("heights", {"weight": (("weight",), float), "skip": (("skip_cost",), float),
+                      "groups": (("descriptor", "n_groups"), int), "step": (("step",), int),
+                      "starts": (("n_starts",), int), "phases": (("all_phases",), _flag)}),
+    "r": ("region", {"weight": (("weight",), float), "order": (("order",), int),
+                     "radius": (("radius",), float)}),
+}
 
-#: ``+hNAME=X`` modifiers of a method's ``heights`` term: name -> (key, type).
-_HEIGHTS_MODIFIERS = {"weight": ("weight", float), "skip": ("skip_cost", float),
-                      "groups": ("n_groups", int), "step": ("step", int), "starts": ("n_starts", int),
-                      "phases": ("all_phases", _flag)}
 
-
-def _with_height_option(term: dict, name: str, value: str) -> dict:
-    """``term`` with the option of modifier ``+h<name>=<value>`` replaced (checked by
-    :func:`geoshape.contour.methods.method_spec`)."""
-    key, kind = _HEIGHTS_MODIFIERS[name]
-    if key == "n_groups":
-        return dict(term, descriptor=dict(term["descriptor"], n_groups=kind(value)))
-    return dict(term, **{key: kind(value)})
+def _with_option(term: dict, path: tuple, value) -> dict:
+    """``term`` with the option at ``path`` (keys into nested dicts) set to ``value``; the keys
+    keep their order, so the spec's digest depends on the values only."""
+    head, *rest = path
+    return dict(term, **{head: _with_option(term[head], tuple(rest), value) if rest else value})
 
 
 def variant_tracing(base: str, n_points: int, overrides: dict) -> dict:
