@@ -98,7 +98,7 @@ def run(args) -> int:
             print(f"[{name}] first pass, {n_starts} starts per orientation …", flush=True)
             t0 = time.perf_counter()
             coarse = first_pass_matrix(sigs, spec["matcher_options"]["skip_cost"], n_starts,
-                                       n_jobs=args.n_jobs)
+                                       spread_power=spec.get("spread_power", 0.0), n_jobs=args.n_jobs)
             seconds = time.perf_counter() - t0
             for k in ks:
                 refine = nearest_mask(coarse, k)

@@ -21,7 +21,9 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
     ``+partsX`` the contour tracer's part fraction (X ≥ 0, returned as ``part_fraction``; see
     :func:`geoshape.geometry.contour.join_parts`), ``+smoothX`` its boundary smoothing (0 ≤ X ≤
     :data:`~geoshape.geometry.contour.MAX_SMOOTHING`,
-    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`); ``+hNAME=X`` and
+    as ``smoothing``; see :func:`geoshape.geometry.contour.smooth_contour`); ``+spreadX`` the
+    main term's spread power (0 ≤ X ≤ 1, as ``spread_power``; see
+    :func:`geoshape.contour.methods.spread_scale`); ``+hNAME=X`` and
     ``+rNAME=X`` a setting of the method's height-functions or region term; in any order,
     before ``@``. Anything else raises :class:`~geoshape.errors.InvalidOptionError` naming it,
     before any work.
@@ -54,6 +56,9 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
             if mod.startswith("starts") and int(mod[6:]) >= 1:
                 overrides["n_starts"] = int(mod[6:])
                 continue
+            if mod.startswith("spread") and 0 <= float(mod[6:]) <= 1:
+                overrides["spread_power"] = float(mod[6:])
+                continue
             name, eq, weight = mod[1:].partition("=")
             key, options = _TERM_MODIFIERS.get(mod[:1], (None, {}))
             term = overrides.get(key, CONTOUR_METHODS.get(base, {}).get(key)) if key else None
@@ -74,7 +79,8 @@ def parse_variant(method: str) -> tuple[str, int, dict]:
                                  "+hphases=0|1 for a "
                                  "method with a heights term, +rweight=X, +rorder=K, +rradius=X "
                                  "for one with a region term, "
-                                 f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g})")
+                                 f"+partsX with X >= 0, +smoothX with 0 <= X <= {MAX_SMOOTHING:g}, "
+                                 "+spreadX with 0 <= X <= 1)")
     if at and not (n.isdigit() and int(n) >= 8):
         raise InvalidOptionError(f"{method!r}: bad contour point count {'@' + n!r} (use @N with N >= 8)")
     return base, int(n) if n else contour_tracing(base)["n_points"], overrides

@@ -336,6 +336,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
                     f"{value['descriptor']['n_groups']} runs, every {value['step']} points"
                     f"{' of every sampling phase' if value.get('all_phases') else ''}, "
                     f"{value['n_starts']} starts per orientation instead")
+        if key == "spread_power":
+            return f", main term divided by the pair's mean descriptor spread to the power {value:g}"
         if key == "region":
             return (f", region term weight {value['weight']:g}, Zernike orders up to {value['order']}, "
                     f"disc of {value['radius']:g} equal-area radii instead")
@@ -364,7 +366,8 @@ def _methods_section(args, methods, reference, chosen, workers, loads, table, su
         "`+skipX`: DP skip cost X; "
         "`+startsK`: K cyclic-DP starts per orientation; `+wNAME=X`: weight X of descriptor part "
         "NAME; `+partsX`: the contour tracer joins components of ≥ X × the largest one's area; "
-        "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter; `+hweight=X`, "
+        "`+smoothX`: it smooths the boundary by a Gaussian of X × the perimeter; `+spreadX`: the "
+        "main term divided by the pair's mean descriptor spread to the power X; `+hweight=X`, "
         "`+hskip=X`, `+hgroups=K`, `+hstep=K`, `+hstarts=K`: that setting of the method's "
         "height-functions term; `+rweight=X`, `+rorder=K`, `+rradius=X`: that setting of its "
         "region term). "

@@ -380,14 +380,14 @@ def method_spec(method: str, **overrides) -> dict:
     for key, value in overrides.items():
         if value is None:
             continue
-        if key in ("matcher", "metric", "mirror", "parts", "heights", "region"):
+        if key in ("matcher", "metric", "mirror", "parts", "heights", "region", "spread_power"):
             spec[key] = value
         elif key in ("skip_cost", "n_starts", "c1", "c2"):
             spec["matcher_options"][key] = value
         else:
             raise InvalidOptionError(
                 f"unknown option {key!r} for method {method!r}; allowed: matcher, metric, "
-                "mirror, parts, heights, region, skip_cost, n_starts, c1, c2"
+                "mirror, parts, heights, region, spread_power, skip_cost, n_starts, c1, c2"
             )
     check_choice("matcher", spec["matcher"], MATCHERS)
     check_choice("metric", spec["metric"], ("sqeuclidean", "chi2"))
@@ -400,7 +400,18 @@ def method_spec(method: str, **overrides) -> dict:
         _check_heights(spec["heights"])
     if spec.get("region"):
         _check_region(spec["region"])
+    power = spec.get("spread_power", 0.0)
+    if not (_is_number(power) and 0 <= power <= 1):
+        raise InvalidOptionError(f"spread_power must be a number in [0, 1], got {power!r}")
+    if power and spec["metric"] != "sqeuclidean":
+        raise InvalidOptionError("spread_power needs the 'sqeuclidean' metric (the spread is a squared "
+                                 f"Euclidean distance), got metric {spec['metric']!r}")
     return spec
+
+
+def _is_number(x) -> bool:
+    """A real number (not a bool)."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
 
 
 def _check_heights(term: dict) -> None:
@@ -432,12 +443,9 @@ def _check_region(term: dict) -> None:
     keys = {"weight", "order", "radius"}
     if not isinstance(term, dict) or set(term) != keys:
         raise InvalidOptionError(f"region must be a dict with keys {sorted(keys)}, got {term!r}")
-    def number(x):
-        return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-
     order = term["order"]
-    checks = (("weight", number(term["weight"]) and term["weight"] >= 0, "a number ≥ 0"),
-              ("radius", number(term["radius"]) and term["radius"] > 0, "a number > 0"),
+    checks = (("weight", _is_number(term["weight"]) and term["weight"] >= 0, "a number ≥ 0"),
+              ("radius", _is_number(term["radius"]) and term["radius"] > 0, "a number > 0"),
               ("order", isinstance(order, (int, np.integer)) and not isinstance(order, bool)
                and order >= 2, "an integer ≥ 2"))
     _reject_failed("region", term, checks)
@@ -455,6 +463,10 @@ class ContourSignature:
     ``complexity`` the mean city-block distance between the rows of each phase's ``H``, averaged
     over the phases (0 without the term). For a method with a ``region`` term: ``Z (K,)`` the
     Zernike moment magnitudes of the enclosed region (the same for the mirror image).
+    ``spread``: the mean squared distance between two of the shape's embedded point
+    descriptors (rows of ``X``, the pair of a row with itself included), i.e. twice their total
+    variance: how varied its points look to the descriptor, the unit of the main term's
+    normalisation (``spread_power``, :func:`pair_costs`). O(N·K).
     """
 
     X: np.ndarray
@@ -464,6 +476,19 @@ class ContourSignature:
     H_mirror: np.ndarray | None = None
     complexity: float = 0.0
     Z: np.ndarray | None = None
+    spread: float = 0.0
+
+
+def descriptor_spread(X: np.ndarray) -> float:
+    """Mean of ``‖X[a] − X[b]‖²`` over all ordered pairs of rows of ``X (N, K)`` (``a = b``
+    included): ``2 · (mean ‖x‖² − ‖mean x‖²)``, twice the rows' total variance. O(N·K).
+
+    >>> descriptor_spread(np.array([[0.0, 0.0], [3.0, 4.0]]))  # pairs: 0, 25, 25, 0
+    12.5
+    """
+    X = np.asarray(X, dtype=np.float64)
+    mean = X.mean(axis=0)
+    return float(max(2.0 * ((X**2).sum(axis=1).mean() - mean @ mean), 0.0))
 
 
 def _embed(P: np.ndarray, spec: dict, inner: tuple | None = None) -> np.ndarray:
@@ -506,10 +531,11 @@ def contour_signature(P, method: str = DEFAULT_METHOD, *, spec: dict | None = No
         from geoshape.contour.descriptors import zernike_magnitudes
 
         Z = zernike_magnitudes(P, order=spec["region"]["order"], radius=spec["region"]["radius"])
+    spread = descriptor_spread(X)
     if not spec.get("heights"):
-        return ContourSignature(X, s, Xm, Z=Z)
+        return ContourSignature(X, s, Xm, Z=Z, spread=spread)
     H, Hm, complexity = _height_signature(P, spec)
-    return ContourSignature(X, s, Xm, H, Hm, complexity, Z)
+    return ContourSignature(X, s, Xm, H, Hm, complexity, Z, spread)
 
 
 def _height_signature(P: np.ndarray, spec: dict):
@@ -579,7 +605,8 @@ class SignatureStack:
     term, ``HV (B, V·R, G, M')`` the height functions of each orientation's ``R`` phases,
     points last (the layout of :func:`~geoshape.contour.matching.cyclic_dp_l1_costs`), and
     ``complexity (B,)``
-    (else ``None``); with a ``region`` term, ``Z (B, K)`` (else ``None``).
+    (else ``None``); with a ``region`` term, ``Z (B, K)`` (else ``None``); ``spread (B,)``
+    the signatures' descriptor spreads.
     """
 
     X: np.ndarray
@@ -590,6 +617,7 @@ class SignatureStack:
     HV: np.ndarray | None = None
     complexity: np.ndarray | None = None
     Z: np.ndarray | None = None
+    spread: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.X)
@@ -600,7 +628,8 @@ class SignatureStack:
         heights = (None, None) if self.HV is None else (self.HV[first:], self.complexity[first:])
         region = None if self.Z is None else self.Z[first:]
         return SignatureStack(self.X[first:], self.s[first:], mirror, self.sq_norms[first:],
-                              self.XV[first:], *heights, region)
+                              self.XV[first:], *heights, region,
+                              None if self.spread is None else self.spread[first:])
 
 
 def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
@@ -620,7 +649,7 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
         complexity = np.array([sig.complexity for sig in sigs])
     Z = None if sigs[0].Z is None else np.stack([sig.Z for sig in sigs])
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
-                          norms, XV, HV, complexity, Z)
+                          norms, XV, HV, complexity, Z, np.array([sig.spread for sig in sigs]))
 
 
 def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarray:
@@ -634,6 +663,8 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     have equal point counts (they are stacked). A method with a ``heights`` term adds
     ``weight ×`` :func:`height_costs` (matched on their own); one with a ``region`` term adds
     ``weight ×`` the city-block distance of the Zernike magnitudes (no matching: O(K) a pair).
+    With ``spread_power = q > 0`` the main term (the descriptors' matching cost) is first
+    divided by :func:`spread_scale`, the two shapes' mean descriptor spread to the power ``q``.
 
     For the ``dp`` matcher with the squared-Euclidean cost the cost matrices are never
     stored: the compiled matcher builds each from the matrix product
@@ -642,13 +673,26 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     if len(sigs2) == 0:
         return np.zeros(0)
     stack = sigs2 if isinstance(sigs2, SignatureStack) else stack_signatures(list(sigs2))
-    return _add_terms(_main_pair_costs(sig1, stack, spec, cols), sig1, stack, spec, cols)
+    return _total_costs(_main_pair_costs(sig1, stack, spec, cols), sig1, stack, spec, cols)
 
 
-def _add_terms(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack, spec: dict,
-               cols=None) -> np.ndarray:
-    """``out`` (the main term's distances to ``stack``, or to its ``cols``) plus, in place, the
-    ``heights`` and ``region`` terms of ``spec``, in that order."""
+def spread_scale(spread_1, spread_2, power: float):
+    """``((spread_1 + spread_2) / 2) ** power`` (broadcast): what a pair's main term is divided
+    by with ``spread_power``. Shapes whose points all look alike (compact blobs) have small
+    matching costs to everything, varied ones large; measured in the pair's own spread, a
+    cost says how unlike the shapes are relative to how varied they are. ``power`` tempers the
+    correction (0: none; 1: unit-free; chosen by cross-validation, docs/2d.md)."""
+    return (0.5 * (np.asarray(spread_1, dtype=np.float64) + spread_2)) ** power
+
+
+def _total_costs(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack, spec: dict,
+                 cols=None) -> np.ndarray:
+    """``out`` (the main term's distances to ``stack``, or to its ``cols``), in place: divided by
+    :func:`spread_scale` with ``spread_power``, plus the ``heights`` and ``region`` terms of
+    ``spec``, in that order."""
+    if spec.get("spread_power"):
+        spread2 = stack.spread if cols is None else stack.spread[np.asarray(cols, dtype=np.int64)]
+        out /= spread_scale(sig1.spread, spread2, spec["spread_power"])
     if spec.get("heights"):
         out += spec["heights"]["weight"] * height_costs(sig1, stack, spec, cols)
     if spec.get("region"):
@@ -785,7 +829,7 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
         p2p, cost = _match_one(C, sig1.s, s2, spec)
         if best is None or cost < best[1]:
             best = (index[p2p].astype(np.int64), float(cost))
-    cost = _add_terms(np.array([best[1]]), sig1, stack_signatures([sig2]), spec)[0]
+    cost = _total_costs(np.array([best[1]]), sig1, stack_signatures([sig2]), spec)[0]
     return best[0], float(cost)
 
 

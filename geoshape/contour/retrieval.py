@@ -262,22 +262,31 @@ def nearest_mask(A: np.ndarray, k: int) -> np.ndarray:
     return mask | mask.T
 
 
-def first_pass_matrix(signatures, skip_cost: float, n_starts: int, *, backend: str | None = None,
-                      n_jobs: int | None = None, progress: bool = False) -> np.ndarray:
+def first_pass_matrix(signatures, skip_cost: float, n_starts: int, *, spread_power: float = 0.0,
+                      backend: str | None = None, n_jobs: int | None = None,
+                      progress: bool = False) -> np.ndarray:
     """First-pass distances of all pairs, ``(N, N)`` symmetric with a zero diagonal: the cyclic DP
     with ``skip_cost`` and ``n_starts`` starts per orientation on every ``COARSE_STEP``-th point
-    of each embedding, in single precision. O(N² · (N_pts/step)² · (K + n_starts))."""
+    of each embedding, in single precision, divided by the pair's
+    :func:`~geoshape.contour.methods.spread_scale` with ``spread_power`` (as the exact main term
+    it estimates). O(N² · (N_pts/step)² · (K + n_starts))."""
+    from geoshape.contour.methods import spread_scale
     from geoshape.parallel import pairwise_matrix
 
     items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
     coarse = functools.partial(_coarse_block, skip_cost=skip_cost, n_starts=n_starts)
     if backend == "serial":
         A = np.triu(coarse(items, items), 1)
-        return A + A.T
-    A = pairwise_matrix(coarse, items, symmetric=True, vectorized=True, diagonal=0.0,
-                        block_size=_block_size(len(items), n_jobs, 4, 400), backend=backend,
-                        n_jobs=n_jobs, progress=progress, desc="first pass")
-    return 0.5 * (A + A.T)
+        A = A + A.T
+    else:
+        A = pairwise_matrix(coarse, items, symmetric=True, vectorized=True, diagonal=0.0,
+                            block_size=_block_size(len(items), n_jobs, 4, 400), backend=backend,
+                            n_jobs=n_jobs, progress=progress, desc="first pass")
+        A = 0.5 * (A + A.T)
+    if spread_power:
+        spread = np.array([sig.spread for sig in signatures])
+        A /= spread_scale(spread[:, None], spread[None, :], spread_power)
+    return A
 
 
 def refined_matrix(exact: np.ndarray, first_pass: np.ndarray, refine: np.ndarray) -> np.ndarray:
@@ -297,7 +306,8 @@ def _coarse_to_fine_matrix(signatures, spec, refine_k, backend, n_jobs, progress
     opts = spec["matcher_options"]
     A = first_pass_matrix(signatures, opts.get("skip_cost", 0.3),
                           min(opts.get("n_starts", COARSE_STARTS), COARSE_STARTS),
-                          backend=backend, n_jobs=n_jobs, progress=progress)
+                          spread_power=spec.get("spread_power", 0.0), backend=backend,
+                          n_jobs=n_jobs, progress=progress)
     refine = nearest_mask(A, refine_k)
     fine = functools.partial(_refine_block, spec=spec, refine=refine)
     indexed = list(enumerate(signatures))
