@@ -158,7 +158,9 @@ def test_search_matrix_is_its_parts_and_coarse2d_measures_recall(signatures, exa
     from geoshape.contour.retrieval import COARSE_STARTS, first_pass_matrix, refined_matrix
     from geoshape.metrics.retrieval import rank_recall
 
-    coarse = first_pass_matrix(signatures, 0.3, COARSE_STARTS, backend=backend, n_jobs=2)
+    spread_power = method_spec("default").get("spread_power", 0.0)  # as bench coarse2d passes it
+    coarse = first_pass_matrix(signatures, 0.3, COARSE_STARTS, spread_power=spread_power,
+                               backend=backend, n_jobs=2)
     assert np.array_equal(coarse, coarse.T) and not coarse.diagonal().any()
     refine = nearest_mask(coarse, 3)
     D = shape_distance_matrix(None, signatures=signatures, search="coarse_to_fine", refine_k=3,

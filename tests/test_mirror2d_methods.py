@@ -132,10 +132,14 @@ def test_the_default_s_matrix_digest_is_pinned():
     """Saved matrices are found by this digest (bench mirror2d's cache, the .spec files of bench
     rerank): a refactor that changed it would silently recompute every cached matrix. Update it
     only when the default's computation really changes."""
-    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_7d86721e"
+    assert method_variants.matrix_cache_name("kimia99", "default") == "kimia99_default_011a580b"
     # the default computes what the cross-validated candidate it was chosen as computed
-    chosen = "default_region+rorder=12+rweight=0.0125"
-    assert method_variants.effective_spec("default") == method_variants.effective_spec(chosen)
+    spec = method_variants.effective_spec
+    assert spec("default") == spec("default_zernike+spread0.25")
+    pinned_zernike = method_variants.matrix_cache_name("kimia99", "default_zernike")
+    assert pinned_zernike == "kimia99_default_zernike_7d86721e"
+    chosen = "default_region+rorder=12+rweight=0.0125"  # the default of 2026-12-06 (night)
+    assert spec("default_zernike") == spec(chosen)
     assert method_variants.matrix_cache_name("kimia99", "default_phases") == "kimia99_default_phases_e531d5dd"
     # the defaults before, pinned: their cached matrices stay valid
     assert method_variants.matrix_cache_name("kimia99", "default_144pt") == "kimia99_default_144pt_9e4dce61"

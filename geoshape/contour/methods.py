@@ -24,8 +24,13 @@ name           descriptor                               point cost   matcher
                plus 0.0125 × the regions' Zernike       city-block   none (one vector per
                moment magnitudes, orders 2 to 12                     shape, reflection-
                (``zernike_magnitudes``)                              invariant)
+               the main term divided by the pair's mean
+               descriptor spread to the power 0.25
+               (``spread_scale``)
 ``default_nomirror`` the same, direct orientation only (the region term is reflection-invariant)
-``default_phases`` the default of 2026-12-06 (evening): the same without the region term (pinned)
+``default_zernike`` the default of 2026-12-06 (night) to 12-07: the same without the spread
+               normalisation (pinned)
+``default_phases`` the default of 2026-12-06 (evening): ``default_zernike`` without the region term (pinned)
 ``default_region`` ``default_phases`` + 0.025 × the region term on orders 2 to 8 (pinned candidate)
 ``default_144pt`` the default of 2026-12-05 (night) to 12-06: the same without the height functions (pinned)
 ``default_100pt`` ``default_144pt`` on 100 unsmoothed points, parts of ≥ 0.5 % joined (pinned,
@@ -242,16 +247,33 @@ def _region_term(weight: float, *, order: int = 8, radius: float = 2.0) -> dict:
     return dict(weight=weight, order=order, radius=radius)
 
 
-#: The default since 2026-12-06 (night): ``default_phases`` plus 0.0125 x the city-block
-#: distance of the Zernike moment magnitudes up to order 12 of the enclosed regions (a disc of
-#: twice the equal-area radius) — the rule's choice over the nine dev collections in "2D
-#: default method: cross-validated choice (default2d-region)" (time reference: the default
-#: before it), among weights 0.00625 to 0.05, orders 8 / 12 / 16 and discs of 1.5 / 2
+#: The default of 2026-12-06 (night) to 12-07 (``default_zernike``): ``default_phases`` plus
+#: 0.0125 x the city-block distance of the Zernike moment magnitudes up to order 12 of the
+#: enclosed regions (a disc of twice the equal-area radius) — the rule's choice over the nine dev
+#: collections in "2D default method: cross-validated choice (default2d-region)" (time reference:
+#: the default before it), among weights 0.00625 to 0.05, orders 8 / 12 / 16 and discs of 1.5 / 2
 #: equal-area radii.
-_DEFAULT = dict(
+_DEFAULT_ZERNIKE = dict(
     _DEFAULT_PHASES, region=_region_term(0.0125, order=12),
     summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
     "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, plus 0.25 x the "
+    "height-functions dissimilarity (23 runs weighted 1/r on every 2nd point, both sampling "
+    "phases, city-block cyclic DP, divided by the shapes' complexities) and 0.0125 x the "
+    "city-block distance of the regions' Zernike moment magnitudes (orders 2 to 12, a disc of "
+    "twice the equal-area radius), on 144 contour points smoothed by a Gaussian of 0.0025 x the "
+    "perimeter, parts of >= 1 % of the largest joined",
+)
+
+#: The default since 2026-12-07: ``default_zernike`` with its main term (the descriptors'
+#: matching cost) divided by the pair's mean descriptor spread to the power 0.25
+#: (:func:`spread_scale`) — the rule's choice over the nine dev collections in "2D default
+#: method: cross-validated choice (default2d-spread)" (time reference: the default before it),
+#: among powers 0.125, 0.25, 0.5 and 1.
+_DEFAULT = dict(
+    _DEFAULT_ZERNIKE, spread_power=0.25,
+    summary="inner-distance SC 5x12 + 0.25 shape context (distances in median units) + 0.005 "
+    "geodesic SC, cyclic DP (16 starts per orientation), mirror images too, divided by the pair's "
+    "mean descriptor spread to the power 0.25, plus 0.25 x the "
     "height-functions dissimilarity (23 runs weighted 1/r on every 2nd point, both sampling "
     "phases, city-block cyclic DP, divided by the shapes' complexities) and 0.0125 x the "
     "city-block distance of the regions' Zernike moment magnitudes (orders 2 to 12, a disc of "
@@ -309,6 +331,9 @@ CONTOUR_METHODS: dict[str, dict] = {
     "default_phases": _variant("the default of 2026-12-06 (evening): the default without the region "
                                "term (pinned; the time reference of default2d-region)",
                                base=_DEFAULT_PHASES),
+    "default_zernike": _variant("the default of 2026-12-06 (night) to 12-07: the default without "
+                                "the spread normalisation (pinned; the time reference of "
+                                "default2d-spread)", base=_DEFAULT_ZERNIKE),
     "default_region": _variant("default_phases + 0.025 x the city-block distance of the Zernike "
                                "moment magnitudes (orders 2 to 8) of the enclosed regions, scaled to "
                                "twice the equal-area radius (a cross-validation candidate; pinned)",
