@@ -1,4 +1,4 @@
-"""Checking options: strings against the registries that define them, whole numbers against ranges."""
+"""Checking options: strings against the registries that define them, numbers against ranges."""
 
 from __future__ import annotations
 
@@ -18,6 +18,17 @@ def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
         listed = ", ".join(repr(c) for c in allowed)
         raise InvalidOptionError(f"{name} must be one of {listed}; got {value!r}")
     return value
+
+
+def is_real_number(value) -> bool:
+    """A real number: an int or float (NumPy's too), not a bool, not a string.
+
+    >>> is_real_number(0.25), is_real_number(True), is_real_number("0.25")
+    (True, False, False)
+    """
+    import numpy as np
+
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
 
 def check_whole(name: str, value, lo: int, hi: int | None = None) -> int:

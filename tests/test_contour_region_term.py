@@ -103,7 +103,7 @@ def test_coarse_to_fine_refines_with_the_region_term(shapes):
     Z = np.array([sig.Z for sig in sigs])
     assert np.allclose(exact, plain + 0.5 * np.abs(Z[:, None] - Z[None]).sum(axis=2), atol=1e-12)
     fine = shape_distance_matrix(None, "default_phases", search="coarse_to_fine", refine_k=2, **options)
-    refine = nearest_mask(first_pass_matrix(sigs, 0.3, COARSE_STARTS, backend="serial"), 2)
+    refine = nearest_mask(first_pass_matrix(sigs, 0.3, COARSE_STARTS, spread_power=0.0, backend="serial"), 2)
     assert refine.sum() < refine.size - len(refine)  # some pairs are left to the first pass
     np.fill_diagonal(refine, False)
     assert np.allclose(fine[refine], exact[refine], atol=1e-12)

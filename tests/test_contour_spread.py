@@ -57,11 +57,29 @@ def test_the_main_term_is_divided_by_the_pairs_mean_spread(shapes, power):
     assert np.allclose(scaled, main / ((s[0] + s[1:]) / 2) ** power + terms, rtol=1e-12)
 
 
-def test_zero_power_changes_nothing(shapes):
+def test_zero_power_is_the_method_without_normalisation(shapes):
+    """``default`` with ``spread_power=0`` computes what ``default_zernike`` (the default
+    without it) computes, to the bit; with its own power it does not."""
     spec = methods.method_spec("default")
+    assert spec["spread_power"] > 0
     sigs = [methods.contour_signature(P, spec=spec) for P in shapes]
-    np.testing.assert_array_equal(methods.pair_costs(sigs[0], sigs[1:], dict(spec, spread_power=0.0)),
-                                  methods.pair_costs(sigs[0], sigs[1:], dict(spec, spread_power=0)))
+    before = methods.pair_costs(sigs[0], sigs[1:], methods.method_spec("default_zernike"))
+    np.testing.assert_array_equal(methods.pair_costs(sigs[0], sigs[1:], dict(spec, spread_power=0)), before)
+    assert not np.allclose(methods.pair_costs(sigs[0], sigs[1:], spec), before)
+
+
+def test_a_signature_without_its_spread_is_refused_and_a_zero_spread_is_floored(shapes):
+    import dataclasses
+
+    spec = methods.method_spec("default_144pt", spread_power=0.5)
+    sigs = [methods.contour_signature(P, spec=spec) for P in shapes[:3]]
+    bare = dataclasses.replace(sigs[0], spread=None)
+    with pytest.raises(InvalidOptionError, match="needs each signature's descriptor spread"):
+        methods.pair_costs(bare, sigs[1:], spec)
+    flat = dataclasses.replace(sigs[1], spread=0.0)  # all of its points alike
+    costs = methods.pair_costs(flat, [flat, sigs[2]], spec)
+    assert np.isfinite(costs).all() and costs[0] == pytest.approx(0.0, abs=1e-9)
+    assert methods.spread_scale(0.0, 0.0, 0.5) == pytest.approx(methods.MIN_SPREAD ** 0.5)
 
 
 def test_match_contours_reports_the_matrix_entry(shapes):
@@ -87,7 +105,7 @@ def test_coarse_to_fine_ranks_and_refines_with_the_spread(shapes):
     spec = methods.method_spec("default", spread_power=0.25)
     sigs = [methods.contour_signature(P, spec=spec) for P in shapes]
     s = np.array([sig.spread for sig in sigs])
-    plain = first_pass_matrix(sigs, 0.3, COARSE_STARTS, backend="serial")
+    plain = first_pass_matrix(sigs, 0.3, COARSE_STARTS, spread_power=0.0, backend="serial")
     A = first_pass_matrix(sigs, 0.3, COARSE_STARTS, spread_power=0.25, backend="serial")
     assert np.allclose(A, plain / ((s[:, None] + s[None]) / 2) ** 0.25, rtol=1e-12)
     options = dict(signatures=sigs, backend="serial", spread_power=0.25)

@@ -147,7 +147,6 @@ def test_the_default_s_matrix_digest_is_pinned():
     assert pinned_heights == "kimia99_default_heights_d70f6ae3"
 
 
-
 def test_heights_variants_run_and_name_their_setting_in_their_own_section(tmp_path, capsys):
     variant = "default_heights+hweight=0.5+hgroups=11+hphases=1@64"
     _, args = _tiny_args(tmp_path, "--methods", f"default@64,{variant}", "--section", "default2d-trial")

@@ -73,7 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geoshape._options import check_choice
+from geoshape._options import check_choice, is_real_number
 from geoshape.contour.matching import (
     MATCHERS,
     batch_match_costs,
@@ -100,6 +100,8 @@ __all__ = [
     "signature_cost_matrices",
     "pair_costs",
     "match_contours",
+    "descriptor_spread",
+    "spread_scale",
 ]
 
 
@@ -426,17 +428,12 @@ def method_spec(method: str, **overrides) -> dict:
     if spec.get("region"):
         _check_region(spec["region"])
     power = spec.get("spread_power", 0.0)
-    if not (_is_number(power) and 0 <= power <= 1):
+    if not (is_real_number(power) and 0 <= power <= 1):
         raise InvalidOptionError(f"spread_power must be a number in [0, 1], got {power!r}")
     if power and spec["metric"] != "sqeuclidean":
         raise InvalidOptionError("spread_power needs the 'sqeuclidean' metric (the spread is a squared "
                                  f"Euclidean distance), got metric {spec['metric']!r}")
     return spec
-
-
-def _is_number(x) -> bool:
-    """A real number (not a bool)."""
-    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
 
 
 def _check_heights(term: dict) -> None:
@@ -469,8 +466,8 @@ def _check_region(term: dict) -> None:
     if not isinstance(term, dict) or set(term) != keys:
         raise InvalidOptionError(f"region must be a dict with keys {sorted(keys)}, got {term!r}")
     order = term["order"]
-    checks = (("weight", _is_number(term["weight"]) and term["weight"] >= 0, "a number ≥ 0"),
-              ("radius", _is_number(term["radius"]) and term["radius"] > 0, "a number > 0"),
+    checks = (("weight", is_real_number(term["weight"]) and term["weight"] >= 0, "a number ≥ 0"),
+              ("radius", is_real_number(term["radius"]) and term["radius"] > 0, "a number > 0"),
               ("order", isinstance(order, (int, np.integer)) and not isinstance(order, bool)
                and order >= 2, "an integer ≥ 2"))
     _reject_failed("region", term, checks)
@@ -488,10 +485,9 @@ class ContourSignature:
     ``complexity`` the mean city-block distance between the rows of each phase's ``H``, averaged
     over the phases (0 without the term). For a method with a ``region`` term: ``Z (K,)`` the
     Zernike moment magnitudes of the enclosed region (the same for the mirror image).
-    ``spread``: the mean squared distance between two of the shape's embedded point
-    descriptors (rows of ``X``, the pair of a row with itself included), i.e. twice their total
-    variance: how varied its points look to the descriptor, the unit of the main term's
-    normalisation (``spread_power``, :func:`pair_costs`). O(N·K).
+    ``spread``: :func:`descriptor_spread` of ``X`` — how varied its points look to the
+    descriptor, the unit of the main term's normalisation (``spread_power``,
+    :func:`pair_costs`); ``None`` only in a signature built by hand. O(N·K).
     """
 
     X: np.ndarray
@@ -501,7 +497,7 @@ class ContourSignature:
     H_mirror: np.ndarray | None = None
     complexity: float = 0.0
     Z: np.ndarray | None = None
-    spread: float = 0.0
+    spread: float | None = None
 
 
 def descriptor_spread(X: np.ndarray) -> float:
@@ -631,7 +627,7 @@ class SignatureStack:
     points last (the layout of :func:`~geoshape.contour.matching.cyclic_dp_l1_costs`), and
     ``complexity (B,)``
     (else ``None``); with a ``region`` term, ``Z (B, K)`` (else ``None``); ``spread (B,)``
-    the signatures' descriptor spreads.
+    the signatures' descriptor spreads (``None`` if one has none).
     """
 
     X: np.ndarray
@@ -673,8 +669,10 @@ def stack_signatures(sigs: list[ContourSignature]) -> SignatureStack:
         HV = np.ascontiguousarray(HV.transpose(0, 1, 3, 2))
         complexity = np.array([sig.complexity for sig in sigs])
     Z = None if sigs[0].Z is None else np.stack([sig.Z for sig in sigs])
+    known = all(sig.spread is not None for sig in sigs)
+    spread = np.array([sig.spread for sig in sigs], dtype=np.float64) if known else None
     return SignatureStack(XV[:, 0], np.stack([s.s for s in sigs]), XV[:, 1] if mirror else None,
-                          norms, XV, HV, complexity, Z, np.array([sig.spread for sig in sigs]))
+                          norms, XV, HV, complexity, Z, spread)
 
 
 def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarray:
@@ -701,13 +699,36 @@ def pair_costs(sig1: ContourSignature, sigs2, spec: dict, cols=None) -> np.ndarr
     return _total_costs(_main_pair_costs(sig1, stack, spec, cols), sig1, stack, spec, cols)
 
 
-def spread_scale(spread_1, spread_2, power: float):
-    """``((spread_1 + spread_2) / 2) ** power`` (broadcast): what a pair's main term is divided
-    by with ``spread_power``. Shapes whose points all look alike (compact blobs) have small
-    matching costs to everything, varied ones large; measured in the pair's own spread, a
-    cost says how unlike the shapes are relative to how varied they are. ``power`` tempers the
-    correction (0: none; 1: unit-free; chosen by cross-validation, docs/2d.md)."""
-    return (0.5 * (np.asarray(spread_1, dtype=np.float64) + spread_2)) ** power
+#: Smallest mean spread a pair is divided by (two shapes whose point descriptors are all alike
+#: would otherwise give 0 / 0).
+MIN_SPREAD = 1e-9
+
+
+def spread_scale(spread_1, spread_2, power: float) -> np.ndarray:
+    """What a pair's main term is divided by with ``spread_power``.
+
+    Shapes whose points all look alike (compact blobs) have small matching costs to
+    everything, varied ones large; measured in the pair's own spread, a cost says how unlike
+    the shapes are relative to how varied they are. ``power`` tempers the correction (0:
+    none; 1: unit-free; chosen by cross-validation, docs/2d.md).
+
+    Parameters
+    ----------
+    spread_1, spread_2 : float or array_like
+        :func:`descriptor_spread` of each shape (broadcast together).
+    power : float
+        In [0, 1].
+
+    Returns
+    -------
+    ndarray
+        ``max((spread_1 + spread_2) / 2, MIN_SPREAD) ** power``, the broadcast shape. O(1) a pair.
+
+    >>> float(spread_scale(0.5, 1.5, 0.5))
+    1.0
+    """
+    mean = 0.5 * (np.asarray(spread_1, dtype=np.float64) + np.asarray(spread_2, dtype=np.float64))
+    return np.maximum(mean, MIN_SPREAD) ** power
 
 
 def _total_costs(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack, spec: dict,
@@ -716,6 +737,9 @@ def _total_costs(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack,
     :func:`spread_scale` with ``spread_power``, plus the ``heights`` and ``region`` terms of
     ``spec``, in that order."""
     if spec.get("spread_power"):
+        if sig1.spread is None or stack.spread is None:
+            raise InvalidOptionError("spread_power needs each signature's descriptor spread "
+                                     "(contour_signature computes it); a signature has none")
         spread2 = stack.spread if cols is None else stack.spread[np.asarray(cols, dtype=np.int64)]
         out /= spread_scale(sig1.spread, spread2, spec["spread_power"])
     if spec.get("heights"):

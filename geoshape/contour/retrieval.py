@@ -45,6 +45,7 @@ from geoshape.contour.methods import (
     contour_tracing,
     method_spec,
     pair_costs,
+    spread_scale,
     stack_signatures,
 )
 from geoshape.errors import InvalidOptionError
@@ -262,15 +263,15 @@ def nearest_mask(A: np.ndarray, k: int) -> np.ndarray:
     return mask | mask.T
 
 
-def first_pass_matrix(signatures, skip_cost: float, n_starts: int, *, spread_power: float = 0.0,
+def first_pass_matrix(signatures, skip_cost: float, n_starts: int, *, spread_power: float,
                       backend: str | None = None, n_jobs: int | None = None,
                       progress: bool = False) -> np.ndarray:
     """First-pass distances of all pairs, ``(N, N)`` symmetric with a zero diagonal: the cyclic DP
     with ``skip_cost`` and ``n_starts`` starts per orientation on every ``COARSE_STEP``-th point
     of each embedding, in single precision, divided by the pair's
-    :func:`~geoshape.contour.methods.spread_scale` with ``spread_power`` (as the exact main term
-    it estimates). O(N² · (N_pts/step)² · (K + n_starts))."""
-    from geoshape.contour.methods import spread_scale
+    :func:`~geoshape.contour.methods.spread_scale` with ``spread_power`` (required: the method's,
+    as for the exact main term it estimates, so both rank on one scale).
+    O(N² · (N_pts/step)² · (K + n_starts))."""
     from geoshape.parallel import pairwise_matrix
 
     items = [_coarse_item(sig, COARSE_STEP) for sig in signatures]
