@@ -841,7 +841,8 @@ def match_contours(P, Q, method: str = DEFAULT_METHOD, **options) -> tuple[np.nd
         ``curvature_map``).
     **options
         Overrides of the method's entry: ``matcher`` (``best``, ``proximity``,
-        ``hungarian``, ``dp``), ``mirror``, ``skip_cost``, ``n_starts``, ``c1``, ``c2``.
+        ``hungarian``, ``dp``), ``mirror``, ``skip_cost``, ``n_starts``, ``c1``, ``c2``,
+        ``spread_power``.
 
     Returns
     -------
