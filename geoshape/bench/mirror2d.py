@@ -36,6 +36,8 @@ section (``default2d``) of docs/RESULTS.md. This is how candidates for ``default
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from geoshape.bench.method_variants import effective_spec, matrix_cache_name, parse_variant, variant_tracing
 
 HELP = "default 2D method with and without mirror images on every dev collection; rule-based choice"
@@ -94,6 +96,19 @@ def choose(summary: dict, reference: str = "off") -> str:
     top = max(v[0] for v in eligible.values())
     tied = {s: v for s, v in eligible.items() if v[0] >= top - TIE_POINTS}
     return min(tied, key=lambda s: (-tied[s][1], tied[s][2]))
+
+
+class _Score(NamedTuple):
+    """One matrix's scores on its collection and its times (``matrix_cpu_s``: None if cached
+    before CPU seconds were recorded)."""
+
+    top_k: int
+    top_k_max: int
+    bulls_eye: float
+    map: float
+    descriptors_s: float
+    matrix_s: float
+    matrix_cpu_s: float | None
 
 
 #: Whether this process has run the untimed warm-up of :func:`_timed_matrix`.
@@ -232,8 +247,7 @@ def run(args) -> int:
         reference = "off"
     work = Path(args.matrix_dir)
     work.mkdir(parents=True, exist_ok=True)
-    scores = {}  # (collection, setting) -> (top-k total, top-k max, bull's-eye, mAP, desc s, matrix s,
-    #               matrix CPU s or None)
+    scores: dict[tuple[str, str], _Score] = {}  # (collection, setting) -> its scores and times
     workers_seen: set = set()
     names, loads = [], []
     for item in args.sets.split(","):
@@ -245,8 +259,9 @@ def run(args) -> int:
                else _collection(name, folder, work, settings, args.n_jobs))
         for setting, (D, info) in per.items():
             m = retrieval_metrics(D, labels)
-            scores[name, setting] = (m["top_k_total"], m["top_k_max"], m["bulls_eye"], m["map"],
-                                     info["descriptors_s"], info["matrix_s"], info.get("matrix_cpu_s"))
+            scores[name, setting] = _Score(m["top_k_total"], m["top_k_max"], m["bulls_eye"], m["map"],
+                                           info["descriptors_s"], info["matrix_s"],
+                                           info.get("matrix_cpu_s"))
             loads.append(info.get("load", float("nan")))
             cpu = info.get("matrix_cpu_s")
             print(f"  {name} {setting}: top-10 {m['top_k_total']}/{m['top_k_max']}, bull's-eye "
@@ -259,12 +274,12 @@ def run(args) -> int:
     for name, n in names:
         base = name.rpartition("-")[0]
         for setting in settings:
-            tot, mx, be, mAP, ds, ms, _ = scores[name, setting]
-            row = [name, n, setting, f"{tot}/{mx}", f"{be:.2f}", f"{mAP:.4f}", f"{ds:.1f}",
-                   f"{ms:.1f}"]
+            sc = scores[name, setting]
+            row = [name, n, setting, f"{sc.top_k}/{sc.top_k_max}", f"{sc.bulls_eye:.2f}",
+                   f"{sc.map:.4f}", f"{sc.descriptors_s:.1f}", f"{sc.matrix_s:.1f}"]
             if args.methods:  # bull's-eye points below the clean collection's
                 clean = scores.get((base, setting))
-                row.insert(5, f"{be - clean[2]:+.2f}" if clean else "")
+                row.insert(5, f"{sc.bulls_eye - clean.bulls_eye:+.2f}" if clean else "")
             rows.append(row)
     header = [col, "top-10 total", "bull's-eye %", "mAP", "descriptors s", "all-pairs matrix s"]
     if args.methods:
@@ -273,26 +288,26 @@ def run(args) -> int:
     # Mean rank over collections (1 = best bull's-eye; ties share the mean rank).
     ranks = {s: [] for s in settings}
     for name, _ in names:
-        be = np.array([scores[name, s][2] for s in settings])
+        be = np.array([scores[name, s].bulls_eye for s in settings])
         for s, b in zip(settings, be, strict=True):
             ranks[s].append(1.0 + (be > b + 1e-9).sum() + 0.5 * ((np.abs(be - b) <= 1e-9).sum() - 1))
     # The budget counts CPU seconds (the work, whatever shares the machine) when every matrix
     # has them and all were computed with one worker count (each pool's start-up is counted);
     # matrices cached before they were recorded have wall seconds only.
     counts = workers_seen - {None}
-    on_cpu = all(v[6] is not None for v in scores.values()) and len(counts) <= 1
-    wall = {s: sum(scores[name, s][5] for name, _ in names) for s in settings}
-    cpu = {s: sum(scores[name, s][6] for name, _ in names) for s in settings} if on_cpu else None
+    on_cpu = all(v.matrix_cpu_s is not None for v in scores.values()) and len(counts) <= 1
+    wall = {s: sum(scores[name, s].matrix_s for name, _ in names) for s in settings}
+    cpu = {s: sum(scores[name, s].matrix_cpu_s for name, _ in names) for s in settings} if on_cpu else None
     summary = {}
     for s in settings:
         vals = [scores[name, s] for name, _ in names]
-        summary[s] = (min(v[2] for v in vals), float(np.mean([v[3] for v in vals])),
+        summary[s] = (min(v.bulls_eye for v in vals), float(np.mean([v.map for v in vals])),
                       (cpu or wall)[s])
     chosen = choose(summary, reference)
     ref_cost = summary[reference][2]
-    worst = {s: min(names, key=lambda nn, s=s: scores[nn[0], s][2])[0] for s in settings}
+    worst = {s: min(names, key=lambda nn, s=s: scores[nn[0], s].bulls_eye)[0] for s in settings}
     sum_rows = [[s, f"{summary[s][0]:.2f} ({worst[s]})",
-                 f"{np.mean([scores[n, s][2] for n, _ in names]):.2f}", f"{summary[s][1]:.5f}",
+                 f"{np.mean([scores[n, s].bulls_eye for n, _ in names]):.2f}", f"{summary[s][1]:.5f}",
                  f"{np.mean(ranks[s]):.2f}", f"{wall[s]:.1f}", f"{cpu[s]:.1f}" if cpu else "—",
                  f"{summary[s][2] / ref_cost:.2f}", "**chosen**" if s == chosen else ""]
                 for s in settings]

@@ -736,17 +736,16 @@ def _total_costs(out: np.ndarray, sig1: ContourSignature, stack: SignatureStack,
     """``out`` (the main term's distances to ``stack``, or to its ``cols``), in place: divided by
     :func:`spread_scale` with ``spread_power``, plus the ``heights`` and ``region`` terms of
     ``spec``, in that order."""
+    picked = slice(None) if cols is None else np.asarray(cols, dtype=np.int64)
     if spec.get("spread_power"):
         if sig1.spread is None or stack.spread is None:
             raise InvalidOptionError("spread_power needs each signature's descriptor spread "
                                      "(contour_signature computes it); a signature has none")
-        spread2 = stack.spread if cols is None else stack.spread[np.asarray(cols, dtype=np.int64)]
-        out /= spread_scale(sig1.spread, spread2, spec["spread_power"])
+        out /= spread_scale(sig1.spread, stack.spread[picked], spec["spread_power"])
     if spec.get("heights"):
         out += spec["heights"]["weight"] * height_costs(sig1, stack, spec, cols)
     if spec.get("region"):
-        Z2 = stack.Z if cols is None else stack.Z[np.asarray(cols, dtype=np.int64)]
-        out += spec["region"]["weight"] * np.abs(Z2 - sig1.Z).sum(axis=1)
+        out += spec["region"]["weight"] * np.abs(stack.Z[picked] - sig1.Z).sum(axis=1)
     return out
 
 

@@ -39,7 +39,8 @@ __all__ = [
 ]
 
 
-def _check_inputs(D, labels) -> tuple[np.ndarray, np.ndarray]:
+def _check_matrix(D) -> np.ndarray:
+    """``D`` as a float (N, N) array, N ≥ 2, finite off the diagonal; else InvalidOptionError."""
     try:
         D = np.asarray(D, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -56,6 +57,11 @@ def _check_inputs(D, labels) -> tuple[np.ndarray, np.ndarray]:
             f"dissimilarity matrix has {int(bad.sum())} NaN or infinite off-diagonal entries "
             f"(first: D[{i}, {j}] = {D[i, j]})"
         )
+    return D
+
+
+def _check_inputs(D, labels) -> tuple[np.ndarray, np.ndarray]:
+    D = _check_matrix(D)
     labels = np.asarray(labels)
     if labels.ndim != 1 or labels.shape[0] != D.shape[0]:
         raise InvalidOptionError(
@@ -63,6 +69,15 @@ def _check_inputs(D, labels) -> tuple[np.ndarray, np.ndarray]:
             f"got shape {labels.shape}"
         )
     return D, labels
+
+
+def _ranked_order(D: np.ndarray) -> np.ndarray:
+    """``(N, N − 1)``: each row's other items by increasing dissimilarity, the query excluded,
+    ties by index (a stable sort of each row). O(N² log N)."""
+    n = D.shape[0]
+    Dq = D.copy()
+    np.fill_diagonal(Dq, np.inf)  # the query sorts last, then is cut off
+    return np.argsort(Dq, axis=1, kind="stable")[:, : n - 1]
 
 
 def ranked_relevance(D, labels) -> tuple[np.ndarray, np.ndarray]:
@@ -93,10 +108,7 @@ def ranked_relevance(D, labels) -> tuple[np.ndarray, np.ndarray]:
     Time ``O(N^2 log N)`` (stable sort of each row), memory ``O(N^2)``.
     """
     D, labels = _check_inputs(D, labels)
-    n = D.shape[0]
-    Dq = D.copy()
-    np.fill_diagonal(Dq, np.inf)  # the query sorts last, then is cut off
-    order = np.argsort(Dq, axis=1, kind="stable")[:, : n - 1]
+    order = _ranked_order(D)
     rel = labels[order] == labels[:, None]
     _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
     n_relevant = (counts[inverse] - 1).astype(np.int64)
@@ -318,7 +330,7 @@ def rank_recall(D, kept, depths=(10, 20, 40)) -> dict:
     >>> rank_recall(D, kept, depths=(2,))[2].tolist()
     [0.5, 0.5, 0.0, 0.0]
     """
-    D, _ = _check_inputs(D, np.zeros(len(np.asarray(D))))
+    D = _check_matrix(D)
     n = D.shape[0]
     kept = np.asarray(kept)
     if kept.shape != D.shape or not (kept.dtype == bool or np.isin(kept, (0, 1)).all()):
@@ -328,8 +340,8 @@ def rank_recall(D, kept, depths=(10, 20, 40)) -> dict:
     bad = [t for t in depths if not isinstance(t, (int, np.integer)) or t < 1]
     if not depths or bad:
         raise InvalidOptionError(f"depths must be integers >= 1, got {depths!r}")
-    order = np.argsort(np.where(np.eye(n, dtype=bool), np.inf, D), axis=1, kind="stable")
-    first = kept.astype(bool)[np.arange(n)[:, None], order[:, :min(max(depths), n - 1)]]  # self last
+    order = _ranked_order(D)[:, :max(depths)]
+    first = kept.astype(bool)[np.arange(n)[:, None], order]
     return {t: first[:, :t].mean(axis=1) for t in depths}
 
 
